@@ -1,0 +1,40 @@
+"""Certainty of a particle set: the paper's EMMI (eqs. 6-11) and the measures it is compared with.
+
+Pure functions of NumPy arrays. Information is in bits (as the paper); entropies of
+poses, paths and the joint entropy are in nats (differential entropies).
+"""
+
+from .expected_map import emmi, expected_map, weighted_map_entropy
+from .information import (
+    DEFAULT_OBSERVED_TOL,
+    as_probability,
+    cell_entropy,
+    cell_information,
+    map_entropy,
+    map_information,
+    mean_information,
+    observed_cells,
+)
+from .pose import DEFAULT_DET_FLOOR, joint_entropy, path_entropy, pose_entropy
+from .weights import effective_sample_size, normalize_weights, weight_entropy
+
+__all__ = [
+    "DEFAULT_DET_FLOOR",
+    "DEFAULT_OBSERVED_TOL",
+    "as_probability",
+    "cell_entropy",
+    "cell_information",
+    "effective_sample_size",
+    "emmi",
+    "expected_map",
+    "joint_entropy",
+    "map_entropy",
+    "map_information",
+    "mean_information",
+    "normalize_weights",
+    "observed_cells",
+    "path_entropy",
+    "pose_entropy",
+    "weight_entropy",
+    "weighted_map_entropy",
+]

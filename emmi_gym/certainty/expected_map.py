@@ -1,0 +1,41 @@
+"""The expected map (eq. 6), its mean information EMMI (eq. 11), and the particles' map entropies."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .grids import ParticleGrids
+from .information import DEFAULT_OBSERVED_TOL, information_and_observed
+
+
+def expected_map(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False) -> np.ndarray:
+    """Expected map, eq. (6): ``EM_xy = sum_i w_i p(m_xy^[i])``, in probability space.
+
+    ``grids`` is (M, H, W) (or (M, N)) of occupancy probabilities, log-odds with
+    ``logodds=True`` (converted per particle before averaging: averaging log-odds
+    would not be eq. 6), or integer codes with a probability table ``lut`` (see
+    :mod:`emmi_gym.certainty.grids`). ``weights`` are normalised here;
+    ``log_weights=True`` takes log-weights. Returns a float64 grid of shape (H, W).
+    """
+    pg = ParticleGrids.from_arrays(grids, weights, logodds=logodds, lut=lut, log_weights=log_weights)
+    return pg.expected_map_flat().reshape(pg.shape)
+
+
+def emmi(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False,
+         observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """EMMI, eq. (11): the mean information (eq. 10) of the expected map (eq. 6), in bits/cell.
+
+    Two numba passes: each particle's grid is streamed once into the EM, then the
+    EM's information is summed, skipping the cells that are surely unobserved
+    without a logarithm. Same arguments as :func:`expected_map` and
+    :func:`~emmi_gym.certainty.mean_information`.
+    """
+    pg = ParticleGrids.from_arrays(grids, weights, logodds=logodds, lut=lut, log_weights=log_weights)
+    info, n_obs = information_and_observed(pg.expected_map_flat(), observed_tol)
+    return info / n_obs if n_obs else 0.0
+
+
+def weighted_map_entropy(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False) -> float:
+    """``sum_i w_i H(m_i)`` in bits: the map term of the joint entropy, eq. (12), with eq. (8)."""
+    pg = ParticleGrids.from_arrays(grids, weights, logodds=logodds, lut=lut, log_weights=log_weights)
+    return float(np.dot(pg.weights, pg.entropies_bits()))

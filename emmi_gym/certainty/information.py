@@ -1,0 +1,113 @@
+"""Cell and map information, map entropy and mean information (paper eqs. 7-10).
+
+All in bits, as the paper: the entropy of a cell uses base-2 logs, so an unknown
+cell (p = 0.5) carries 0 bits of information and a certain one (p in {0, 1}) 1 bit.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from scipy.optimize import brentq
+
+from . import _kernels
+
+#: Default observed-cell rule of eq. (10), from the authors' reference implementation
+#: (MRPT's ``COccupancyGridMap2D::computeEntropy``): a cell counts as observed when
+#: its entropy is more than 0.001 nats below ln 2, i.e. |p - 0.5| > ~0.0224.
+DEFAULT_OBSERVED_TOL = 1e-3
+
+
+def as_probability(grid, *, logodds: bool = False, lut=None) -> np.ndarray:
+    """Occupancy probabilities (float64) from probabilities, log-odds, or integer codes + ``lut``.
+
+    See :mod:`emmi_gym.certainty.grids` for the three encodings.
+    """
+    if lut is not None:
+        codes = np.asarray(grid)
+        if codes.dtype.kind not in "iu":
+            raise ValueError(f"grids with a lut must hold integer codes, got {codes.dtype}")
+        return np.asarray(lut, dtype=np.float64)[codes.astype(np.int64) - np.iinfo(codes.dtype).min]
+    a = np.asarray(grid, dtype=np.float64)
+    if logodds:
+        return 0.5 * (1.0 + np.tanh(0.5 * a))  # the logistic function, overflow-free
+    if a.size and (np.nanmin(a) < 0.0 or np.nanmax(a) > 1.0 or np.isnan(a).any()):
+        raise ValueError("occupancy probabilities must lie in [0, 1] (pass logodds=True for log-odds)")
+    return a
+
+
+def cell_entropy(p) -> np.ndarray:
+    """Entropy of each cell in bits, eq. (7) with base-2 logs; 0 at p in {0, 1}."""
+    p = np.asarray(p, dtype=np.float64)
+    q = 1.0 - p
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = -(np.where(p > 0, p * np.log2(np.where(p > 0, p, 1.0)), 0.0)
+              + np.where(q > 0, q * np.log2(np.where(q > 0, q, 1.0)), 0.0))
+    return h
+
+
+def cell_information(p) -> np.ndarray:
+    """Information of each cell, ``I = 1 - H(p)`` in bits (eq. 9)."""
+    return 1.0 - cell_entropy(p)
+
+
+def map_information(p) -> float:
+    """Map information ``I(m) = sum_xy (1 - H(p_xy))`` in bits (eq. 9)."""
+    return float(cell_information(p).sum())
+
+
+def map_entropy(p, *, logodds: bool = False, lut=None) -> float:
+    """Map entropy ``H(m) = sum_xy H(p_xy)`` in bits (eq. 8).
+
+    Unlike the information it depends on the grid's extent and resolution: every
+    unknown cell adds a full bit.
+    """
+    return float(cell_entropy(as_probability(p, logodds=logodds, lut=lut)).sum())
+
+
+def max_entropy_bits(observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """Entropy (bits) a cell must stay below to count as observed in eq. (10).
+
+    ``observed_tol`` is in nats: observed when ``H_nats(p) < ln 2 - observed_tol``.
+    """
+    if not (0.0 <= observed_tol < math.log(2.0)):
+        raise ValueError(f"observed_tol must be in [0, ln 2), got {observed_tol!r}")
+    return 1.0 - observed_tol / math.log(2.0)
+
+
+@functools.lru_cache(maxsize=32)
+def unobserved_halfwidth(max_bits: float) -> float:
+    """A half-width around p = 0.5 inside which every cell is surely unobserved.
+
+    90% of the exact |p - 0.5| at which H2(p) = ``max_bits``, so the kernels can skip
+    those cells without a logarithm and still decide every other cell exactly.
+    """
+    if max_bits >= 1.0:
+        return 0.0
+    exact = brentq(lambda d: float(cell_entropy(0.5 + d)) - max_bits, 0.0, 0.5, xtol=1e-15)
+    return 0.9 * exact
+
+
+def information_and_observed(p_flat: np.ndarray, observed_tol: float) -> tuple[float, int]:
+    """(Information over observed cells in bits, number of observed cells) of a flat float grid."""
+    max_bits = max_entropy_bits(observed_tol)
+    return _kernels.information_kernel(p_flat, max_bits, unobserved_halfwidth(max_bits))
+
+
+def observed_cells(p, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:
+    """Boolean mask of the cells that count as observed in eq. (10)."""
+    return cell_entropy(p) < max_entropy_bits(observed_tol)
+
+
+def mean_information(p, *, logodds: bool = False, lut=None, observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """Mean information (MI) of a map, eq. (10): ``I(m) / N_obs`` bits per cell, 0 if N_obs = 0.
+
+    ``I(m)`` sums eq. (9) over the observed cells only (an unobserved cell carries
+    ~0 bits anyway; the tolerance keeps cells that are a hair from 0.5 out of both
+    the sum and the count). The result lies in [0, 1]; see ``DEFAULT_OBSERVED_TOL``.
+    """
+    prob = np.ascontiguousarray(as_probability(p, logodds=logodds, lut=lut)).ravel()
+    info, n_obs = information_and_observed(prob, observed_tol)
+    return info / n_obs if n_obs else 0.0
