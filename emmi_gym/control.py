@@ -1,0 +1,42 @@
+"""Following a list of waypoints with a differential-drive robot (turn towards, then drive)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+class WaypointFollower:
+    """Pure-pursuit style: steer towards the current waypoint, slow down while the heading error is large.
+
+    ``command(pose)`` returns (v, omega); ``done`` turns true once the last waypoint
+    is within ``tolerance`` metres.
+    """
+
+    def __init__(self, waypoints, max_speed: float, max_turn_rate: float, tolerance: float = 0.25,
+                 heading_gain: float = 2.0):
+        self.waypoints = [tuple(map(float, w)) for w in waypoints]
+        if not self.waypoints:
+            raise ValueError("WaypointFollower needs at least one waypoint")
+        self.max_speed, self.max_turn_rate = max_speed, max_turn_rate
+        self.tolerance, self.heading_gain = tolerance, heading_gain
+        self.index = 0
+
+    @property
+    def done(self) -> bool:
+        return self.index >= len(self.waypoints)
+
+    def command(self, pose) -> tuple[float, float]:
+        x, y, theta = pose
+        while not self.done:
+            tx, ty = self.waypoints[self.index]
+            if math.hypot(tx - x, ty - y) > self.tolerance:
+                break
+            self.index += 1
+        if self.done:
+            return 0.0, 0.0
+        error = (math.atan2(ty - y, tx - x) - theta + math.pi) % (2 * math.pi) - math.pi
+        omega = float(np.clip(self.heading_gain * error, -self.max_turn_rate, self.max_turn_rate))
+        v = self.max_speed * max(0.0, math.cos(error)) ** 4
+        return v, omega

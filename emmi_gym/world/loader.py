@@ -1,0 +1,210 @@
+"""Read and validate world files (YAML, ``yaml.safe_load`` only).
+
+A world file::
+
+    name: loop_corridor
+    description: free text
+    bounds: {xmin: -10.5, ymin: -0.5, xmax: 24.5, ymax: 16.5}
+    wall_thickness: 0.2            # default for walls that give none
+    walls:
+      - segment: {from: [0, 0], to: [24, 0]}
+      - polyline: {points: [[0, 10], [0, 16], [24, 16]], closed: false, thickness: 0.2}
+      - rectangle: {min: [2, 2], max: [22, 14]}      # the outline, as four walls
+    start: {x: 12, y: 1, theta: 0}
+    places:                        # optional named poses
+      decision: {x: 1, y: 11, theta: -1.5708}
+    routes:                        # optional: waypoint lists of places or [x, y]
+      to_decision: [start, [23, 1], [23, 15], [1, 15], decision]
+
+Every problem raises :class:`WorldFileError` naming the file, the field and what
+was expected.
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .spec import ROBOT_RADIUS, Place, WorldFileError, WorldSpec, point_segment_distance
+
+_TOP_KEYS = {"name", "description", "bounds", "wall_thickness", "walls", "start", "places", "routes"}
+_REQUIRED = ("name", "bounds", "walls", "start")
+_WALL_KINDS = {"segment": {"from", "to", "thickness"},
+               "polyline": {"points", "closed", "thickness"},
+               "rectangle": {"min", "max", "thickness"}}
+_DEFAULT_THICKNESS = 0.2
+
+
+def builtin_worlds() -> list[str]:
+    """Names of the worlds shipped with the package (the YAML files in ``envs/``)."""
+    files = resources.files("emmi_gym.worlds_data").iterdir()
+    return sorted(Path(f.name).stem for f in files if f.name.endswith(".yaml"))
+
+
+def load_world(name_or_path) -> WorldSpec:
+    """Load a built-in world by name (``"loop_corridor"``) or a world file by path."""
+    path = Path(str(name_or_path))
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        if not path.is_file():
+            raise FileNotFoundError(f"world file {path} does not exist")
+        return parse_world(_read_yaml(path.read_text(), str(path)), source=str(path))
+    if str(name_or_path) not in builtin_worlds():
+        raise ValueError(f"unknown world {name_or_path!r}: give a path to a .yaml file or one of {builtin_worlds()}")
+    text = resources.files("emmi_gym.worlds_data").joinpath(f"{name_or_path}.yaml").read_text()
+    return parse_world(_read_yaml(text, f"{name_or_path}.yaml"), source=f"{name_or_path}.yaml")
+
+
+def _read_yaml(text: str, source: str):
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise WorldFileError(source, "<file>", "valid YAML", str(exc).splitlines()[0]) from None
+
+
+class _Reader:
+    """Field-by-field validation with the path of each field in the messages."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, path: str, expected: str, got=None):
+        raise WorldFileError(self.source, path, expected, got)
+
+    def mapping(self, value, path: str, allowed: set[str], required=()) -> dict:
+        if not isinstance(value, dict):
+            self.fail(path, "a mapping", value)
+        unknown = sorted(set(map(str, value)) - allowed)
+        if unknown:
+            self.fail(f"{path}.{unknown[0]}" if path else unknown[0], f"one of the known keys {sorted(allowed)}")
+        for key in required:
+            if key not in value:
+                self.fail(f"{path}.{key}" if path else key, "a value (the field is required)")
+        return value
+
+    def number(self, value, path: str, *, positive=False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            self.fail(path, "a finite number", value)
+        if positive and value <= 0:
+            self.fail(path, "a positive number", value)
+        return float(value)
+
+    def point(self, value, path: str) -> tuple[float, float]:
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            self.fail(path, "a point [x, y]", value)
+        return (self.number(value[0], f"{path}[0]"), self.number(value[1], f"{path}[1]"))
+
+    def string(self, value, path: str) -> str:
+        if not isinstance(value, str) or not value:
+            self.fail(path, "a non-empty string", value)
+        return value
+
+
+def parse_world(data, source: str = "<dict>") -> WorldSpec:
+    """Validate a world given as a dict (as read from YAML) and build its :class:`WorldSpec`."""
+    r = _Reader(source)
+    data = r.mapping(data, "", _TOP_KEYS, _REQUIRED)
+    name = r.string(data["name"], "name")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        r.fail("description", "a string", description)
+
+    b = r.mapping(data["bounds"], "bounds", {"xmin", "ymin", "xmax", "ymax"}, ("xmin", "ymin", "xmax", "ymax"))
+    bounds = tuple(r.number(b[k], f"bounds.{k}") for k in ("xmin", "ymin", "xmax", "ymax"))
+    if bounds[2] <= bounds[0]:
+        r.fail("bounds.xmax", f"a number greater than bounds.xmin = {bounds[0]}", bounds[2])
+    if bounds[3] <= bounds[1]:
+        r.fail("bounds.ymax", f"a number greater than bounds.ymin = {bounds[1]}", bounds[3])
+
+    default_thickness = r.number(data.get("wall_thickness", _DEFAULT_THICKNESS), "wall_thickness", positive=True)
+    walls = _parse_walls(r, data["walls"], default_thickness)
+    start = _parse_place(r, data["start"], "start")
+    _check_start(r, start, bounds, walls)
+
+    places_data = data.get("places") or {}
+    if not isinstance(places_data, dict):
+        r.fail("places", "a mapping of names to {x, y[, theta]}", places_data)
+    places = {"start": start}
+    for key, value in places_data.items():
+        places[str(key)] = _parse_place(r, value, f"places.{key}")
+
+    routes_data = data.get("routes") or {}
+    if not isinstance(routes_data, dict):
+        r.fail("routes", "a mapping of names to waypoint lists", routes_data)
+    routes = {}
+    for key, waypoints in routes_data.items():
+        path = f"routes.{key}"
+        if not isinstance(waypoints, list) or len(waypoints) < 2:
+            r.fail(path, "a list of at least two waypoints (place names or [x, y])", waypoints)
+        routes[str(key)] = [_waypoint(r, w, f"{path}[{i}]", places) for i, w in enumerate(waypoints)]
+
+    return WorldSpec(name=name, bounds=bounds, walls=walls, start=start, places=places, routes=routes,
+                     description=description, source=source)
+
+
+def _parse_walls(r: _Reader, walls_data, default_thickness: float) -> np.ndarray:
+    if not isinstance(walls_data, list) or not walls_data:
+        r.fail("walls", "a non-empty list of segment / polyline / rectangle entries", walls_data)
+    rows = []
+    for i, entry in enumerate(walls_data):
+        path = f"walls[{i}]"
+        if not isinstance(entry, dict) or len(entry) != 1 or next(iter(entry)) not in _WALL_KINDS:
+            r.fail(path, f"a mapping with exactly one of {sorted(_WALL_KINDS)}", entry)
+        kind, body = next(iter(entry.items()))
+        path = f"{path}.{kind}"
+        required = {"segment": ("from", "to"), "polyline": ("points",), "rectangle": ("min", "max")}[kind]
+        body = r.mapping(body, path, _WALL_KINDS[kind], required)
+        t = r.number(body.get("thickness", default_thickness), f"{path}.thickness", positive=True)
+        if kind == "segment":
+            points = [r.point(body["from"], f"{path}.from"), r.point(body["to"], f"{path}.to")]
+        elif kind == "polyline":
+            pts = body["points"]
+            if not isinstance(pts, list) or len(pts) < 2:
+                r.fail(f"{path}.points", "a list of at least two points [x, y]", pts)
+            points = [r.point(p, f"{path}.points[{k}]") for k, p in enumerate(pts)]
+            closed = body.get("closed", False)
+            if not isinstance(closed, bool):
+                r.fail(f"{path}.closed", "true or false", closed)
+            if closed:
+                points.append(points[0])
+        else:
+            (x0, y0), (x1, y1) = r.point(body["min"], f"{path}.min"), r.point(body["max"], f"{path}.max")
+            if x1 <= x0 or y1 <= y0:
+                r.fail(f"{path}.max", f"a corner above and right of min = [{x0}, {y0}] (positive width and height)",
+                       [x1, y1])
+            points = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+        for k, (a, b) in enumerate(zip(points[:-1], points[1:])):
+            if math.hypot(b[0] - a[0], b[1] - a[1]) <= 1e-9:
+                r.fail(path, f"walls of positive length (points {k} and {k + 1} coincide)", [list(a), list(b)])
+            rows.append((*a, *b, t))
+    return np.array(rows, dtype=np.float64)
+
+
+def _parse_place(r: _Reader, value, path: str) -> Place:
+    v = r.mapping(value, path, {"x", "y", "theta"}, ("x", "y"))
+    theta = r.number(v["theta"], f"{path}.theta") if "theta" in v else None
+    return Place(r.number(v["x"], f"{path}.x"), r.number(v["y"], f"{path}.y"), theta)
+
+
+def _check_start(r: _Reader, start: Place, bounds, walls: np.ndarray) -> None:
+    xmin, ymin, xmax, ymax = bounds
+    if not (xmin + ROBOT_RADIUS <= start.x <= xmax - ROBOT_RADIUS and ymin + ROBOT_RADIUS <= start.y <= ymax - ROBOT_RADIUS):
+        r.fail("start", f"a pose inside the bounds [{xmin}, {xmax}] x [{ymin}, {ymax}] (with the robot's "
+                        f"{ROBOT_RADIUS} m radius)", [start.x, start.y])
+    gaps = point_segment_distance(np.array([start.x]), np.array([start.y]), walls)[0] - walls[:, 4] / 2
+    k = int(np.argmin(gaps))
+    if gaps[k] < ROBOT_RADIUS:
+        r.fail("start", f"a pose where the robot (radius {ROBOT_RADIUS} m) is clear of every wall; it overlaps the "
+                        f"wall from ({walls[k, 0]:g}, {walls[k, 1]:g}) to ({walls[k, 2]:g}, {walls[k, 3]:g})",
+               [start.x, start.y])
+
+
+def _waypoint(r: _Reader, value, path: str, places: dict[str, Place]) -> tuple[float, float]:
+    if isinstance(value, str):
+        if value not in places:
+            r.fail(path, f"a place name (one of {sorted(places)}) or a point [x, y]", value)
+        return places[value].xy
+    return r.point(value, path)
