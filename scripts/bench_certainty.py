@@ -9,10 +9,10 @@ that compiles or loads the cached kernels) and their ratio. Single thread.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
+from _timing import median_seconds
 from emmi_gym.certainty import emmi
 
 
@@ -27,16 +27,6 @@ def naive_emmi(p: np.ndarray, w: np.ndarray) -> float:
 
 def naive_emmi_logodds(l: np.ndarray, w: np.ndarray) -> float:
     return naive_emmi(1.0 / (1.0 + np.exp(-l)), w)
-
-
-def median_ms(fn, repeats: int) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times))
 
 
 def main() -> None:
@@ -59,12 +49,12 @@ def main() -> None:
 
     assert abs(emmi(prob, w) - naive_emmi(prob, w)) < 1e-6
     rows = [
-        ("probabilities", median_ms(lambda: naive_emmi(prob, w), args.repeats),
-         median_ms(lambda: emmi(prob, w), args.repeats)),
-        ("log-odds", median_ms(lambda: naive_emmi_logodds(logodds, w), args.repeats),
-         median_ms(lambda: emmi(logodds, w, logodds=True), args.repeats)),
-        ("int8 codes+lut", median_ms(lambda: naive_emmi(lut[codes.astype(np.int64) + 128], w), args.repeats),
-         median_ms(lambda: emmi(codes, w, lut=lut), args.repeats)),
+        ("probabilities", 1000 * median_seconds(lambda: naive_emmi(prob, w), args.repeats),
+         1000 * median_seconds(lambda: emmi(prob, w), args.repeats)),
+        ("log-odds", 1000 * median_seconds(lambda: naive_emmi_logodds(logodds, w), args.repeats),
+         1000 * median_seconds(lambda: emmi(logodds, w, logodds=True), args.repeats)),
+        ("int8 codes+lut", 1000 * median_seconds(lambda: naive_emmi(lut[codes.astype(np.int64) + 128], w), args.repeats),
+         1000 * median_seconds(lambda: emmi(codes, w, lut=lut), args.repeats)),
     ]
     print(f"EMMI of {args.particles} x {args.side} x {args.side} float32 grids, median of {args.repeats} calls")
     print(f"{'input':<15} {'naive NumPy ms':>15} {'emmi() ms':>10} {'speed-up':>9}")

@@ -11,23 +11,13 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 
 import numpy as np
 import pymunk
+from _timing import median_seconds
 
 from emmi_gym.world.loader import load_world
 from emmi_gym.world.simulator import Simulator
-
-
-def median_us(fn, repeats: int) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e6 * float(np.median(times))
 
 
 def main() -> None:
@@ -49,10 +39,10 @@ def main() -> None:
 
     rng = np.random.default_rng(1)
     print(f"loop_corridor ({len(world.walls)} wall segments), {config.n_beams} beams, median of {args.repeats}")
-    kernel = median_us(lambda: sim.laser.true_ranges(sim.true_pose), args.repeats)
-    noisy = median_us(sim.scan, args.repeats)
-    queries = median_us(pymunk_scan, args.repeats // 5)
-    step = median_us(lambda: sim.step(0.3, 0.2 * rng.standard_normal()), args.repeats)
+    kernel = 1e6 * median_seconds(lambda: sim.laser.true_ranges(sim.true_pose), args.repeats)
+    noisy = 1e6 * median_seconds(sim.scan, args.repeats)
+    queries = 1e6 * median_seconds(pymunk_scan, args.repeats // 5)
+    step = 1e6 * median_seconds(lambda: sim.step(0.3, 0.2 * rng.standard_normal()), args.repeats)
     print(f"scan, numba kernel (no noise):  {kernel:8.1f} us")
     print(f"scan, with noise and drops:      {noisy:8.1f} us")
     print(f"scan, pymunk segment queries:    {queries:8.1f} us  ({queries / kernel:.0f}x the kernel)")

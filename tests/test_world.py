@@ -35,13 +35,19 @@ def box(**changes):
 # ------------------------------------------------------------------ built-in and generated worlds
 
 
+def assert_connected_with_free_start(world):
+    """The robot fits at the start, and every place is in the free space reachable from it."""
+    assert world.clearance(world.start.x, world.start.y) > ROBOT_RADIUS
+    truth = rasterise(world, 0.1)
+    for name, place in world.places.items():
+        assert is_reachable(truth, *place.xy), name
+    return truth
+
+
 @pytest.mark.parametrize("name", builtin_worlds())
 def test_builtin_world_loads_connected_with_free_start(name):
     world = load_world(name)
-    assert world.clearance(world.start.x, world.start.y) > ROBOT_RADIUS
-    truth = rasterise(world, 0.1)
-    for place_name, place in world.places.items():
-        assert is_reachable(truth, *place.xy), place_name
+    truth = assert_connected_with_free_start(world)
     for route in world.routes.values():
         for waypoint in route:
             assert is_reachable(truth, *waypoint)
@@ -83,10 +89,7 @@ def test_office_has_two_independent_loops():
 @pytest.mark.parametrize("seed", range(50))
 def test_generated_world_connected_free_start_deterministic(seed):
     world = generate_world(seed)
-    assert world.clearance(world.start.x, world.start.y) > ROBOT_RADIUS
-    truth = rasterise(world, 0.1)
-    for name, place in world.places.items():
-        assert is_reachable(truth, *place.xy), name
+    assert_connected_with_free_start(world)
     np.testing.assert_array_equal(world.walls, generate_world(seed).walls)
 
 
@@ -173,7 +176,7 @@ def _leaf_paths(obj, prefix=()):
 
 @given(st.data())
 def test_fuzzed_world_files_raise_only_the_loader_error(data):
-    world = yaml.safe_load((load_world.__module__ and open(_builtin_path("loop_corridor")).read()))
+    world = yaml.safe_load(_builtin_path("loop_corridor").read_text())
     paths = [p for p in _leaf_paths(world) if p]
     for _ in range(data.draw(st.integers(1, 3))):
         path = data.draw(st.sampled_from(paths))
