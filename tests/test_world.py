@@ -14,7 +14,8 @@ from emmi_gym.world.generator import GeneratorConfig, generate_world
 from emmi_gym.world.ground_truth import FREE, OCCUPIED, UNKNOWN, is_reachable, rasterise
 from emmi_gym.world.laser import LaserConfig
 from emmi_gym.world.loader import builtin_worlds, load_world, parse_world
-from emmi_gym.world.odometry import OdometryNoise, compose_motion, noisy_motion, relative_motion
+from emmi_gym.motion import compose_motion, relative_motion
+from emmi_gym.world.odometry import OdometryNoise, noisy_motion
 from emmi_gym.world.simulator import RobotConfig, Simulator
 from emmi_gym.world.spec import ROBOT_RADIUS, WorldFileError
 

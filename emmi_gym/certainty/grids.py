@@ -84,7 +84,8 @@ class ParticleGrids:
         """H(m_i), eq. (8), of each particle's map, in bits."""
         if self.lut is not None:
             entropy_lut = cell_entropy(self.lut)
-            return np.array([_kernels.entropy_sum_codes(row, entropy_lut, self.offset) for row in self.flat])
+            return np.array([_kernels.code_histogram(row, self.lut.size, self.offset) @ entropy_lut
+                             for row in self.flat])
         if self.logodds:
             return np.array([_kernels.entropy_sum(logistic(row)) for row in self.flat])
         return np.array([_kernels.entropy_sum(row) for row in self.flat])

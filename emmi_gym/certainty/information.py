@@ -108,6 +108,15 @@ def mean_information(p, *, logodds: bool = False, lut=None, observed_tol: float 
     ~0 bits anyway; the tolerance keeps cells that are a hair from 0.5 out of both
     the sum and the count). The result lies in [0, 1]; see ``DEFAULT_OBSERVED_TOL``.
     """
-    prob = np.ascontiguousarray(as_probability(p, logodds=logodds, lut=lut)).ravel()
+    if lut is not None:  # integer codes: count them, then weigh the table's entries
+        codes = np.ascontiguousarray(p).ravel()
+        table = np.asarray(lut, dtype=np.float64)
+        if codes.dtype.kind not in "iu" or table.shape != (np.iinfo(codes.dtype).max - np.iinfo(codes.dtype).min + 1,):
+            raise ValueError(f"a lut for {codes.dtype} codes needs one probability per code value")
+        counts = _kernels.code_histogram(codes, table.size, -int(np.iinfo(codes.dtype).min))
+        observed = (counts > 0) & observed_cells(table, observed_tol)
+        n_obs = int(counts[observed].sum())
+        return float(counts[observed] @ cell_information(table[observed])) / n_obs if n_obs else 0.0
+    prob = np.ascontiguousarray(as_probability(p, logodds=logodds)).ravel()
     info, n_obs = information_and_observed(prob, observed_tol)
     return info / n_obs if n_obs else 0.0

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ..motion import wrap_angle
 from .expected_map import weighted_map_entropy
 from .weights import normalize_weights
 
@@ -17,10 +18,6 @@ DEFAULT_DET_FLOOR = 1e-18
 _LOG_2PIE_3 = 3.0 * math.log(2.0 * math.pi * math.e)
 
 
-def _wrap(a):
-    return np.mod(np.asarray(a) + np.pi, 2.0 * np.pi) - np.pi
-
-
 def _pose_covariances(poses: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Weighted covariance of (x, y, theta) for poses (..., M, 3); theta about its circular mean."""
     mean_xy = np.einsum("m,...mk->...k", w, poses[..., :2])
@@ -28,7 +25,7 @@ def _pose_covariances(poses: np.ndarray, w: np.ndarray) -> np.ndarray:
                             np.einsum("m,...m->...", w, np.cos(poses[..., 2])))
     d = np.empty_like(poses, dtype=np.float64)
     d[..., :2] = poses[..., :2] - mean_xy[..., None, :]
-    d[..., 2] = _wrap(poses[..., 2] - mean_theta[..., None])
+    d[..., 2] = wrap_angle(poses[..., 2] - mean_theta[..., None])
     return np.einsum("m,...mi,...mj->...ij", w, d, d)
 
 

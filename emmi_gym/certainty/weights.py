@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 
 def normalize_weights(weights, *, log: bool = False) -> np.ndarray:
     """Return float64 weights that sum to one.
 
     ``log=True`` takes log-weights (any real numbers, e.g. accumulated scan
-    log-likelihoods) and normalises them with log-sum-exp, so that values such as
-    -1e9 neither overflow nor turn into NaN. Linear weights must be finite,
+    log-likelihoods) and normalises them the log-sum-exp way, shifting by the maximum
+    before exponentiating, so that values such as -1e9 neither overflow nor turn into
+    NaN. Linear weights must be finite,
     non-negative and not all zero.
     """
     w = np.asarray(weights, dtype=np.float64)
@@ -22,8 +22,8 @@ def normalize_weights(weights, *, log: bool = False) -> np.ndarray:
             raise ValueError("log-weights must not be NaN or +inf")
         if np.isneginf(w).all():
             raise ValueError("all log-weights are -inf: no particle has any weight")
-        shifted = w - w.max()  # exact, so the normaliser below is computed near 0
-        return np.exp(shifted - logsumexp(shifted))
+        relative = np.exp(w - w.max())  # the largest is exactly 1: no overflow, sum >= 1
+        return relative / relative.sum()
     if not np.isfinite(w).all() or (w < 0).any():
         raise ValueError("linear weights must be finite and non-negative (pass log=True for log-weights)")
     total = w.sum()

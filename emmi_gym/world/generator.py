@@ -30,7 +30,7 @@ class GeneratorConfig:
     n_loops: int = 2
     room_probability: float = 0.6
     room_size: float = 4.0
-    wall_thickness: float = 0.2
+    wall_thickness: float = 0.25
 
     def __post_init__(self):
         if self.nx < 2 or self.ny < 2:

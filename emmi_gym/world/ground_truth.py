@@ -36,16 +36,17 @@ class GroundTruth:
 
 
 def wall_mask(world: WorldSpec, geometry: GridGeometry) -> np.ndarray:
-    """Cells whose centre lies within half a wall's thickness plus half a cell of its centre line.
+    """Cells that a wall overlaps: centre closer than half the thickness plus half a cell to its centre line.
 
-    The half cell makes every wall at least one cell thick, so that no 4-connected
-    path of free cells leaks through a wall thinner than a cell.
+    The inequality is strict (less 1e-6 of a cell), so a cell that only touches a wall's
+    face is free, as it is for the laser; the half cell makes every wall at least one
+    cell thick, so no 4-connected path of free cells leaks through a thin wall.
     """
     mask = np.zeros(geometry.shape, dtype=bool)
     res = geometry.resolution
     for wall in world.walls:
         ax, ay, bx, by, t = wall
-        reach = t / 2 + res / 2
+        reach = t / 2 + res / 2 - 1e-6 * res
         r0, c0 = geometry.cell_of(min(ax, bx) - reach, min(ay, by) - reach)
         r1, c1 = geometry.cell_of(max(ax, bx) + reach, max(ay, by) + reach)
         r0, c0 = max(int(r0), 0), max(int(c0), 0)
@@ -55,7 +56,7 @@ def wall_mask(world: WorldSpec, geometry: GridGeometry) -> np.ndarray:
         rows, cols = np.mgrid[r0:r1 + 1, c0:c1 + 1]
         x, y = geometry.centre_of(rows, cols)
         d = point_segment_distance(x.ravel(), y.ravel(), wall[None, :])[:, 0].reshape(x.shape)
-        mask[r0:r1 + 1, c0:c1 + 1] |= d <= reach
+        mask[r0:r1 + 1, c0:c1 + 1] |= d < reach
     return mask
 
 

@@ -1,4 +1,4 @@
-"""Noisy odometry: the standard odometry motion model (Thrun et al., Probabilistic Robotics, 5.4).
+"""Noisy odometry: the odometry motion model of :mod:`emmi_gym.motion` plus a systematic drift.
 
 A relative motion is split into (rot1, trans, rot2); each part is perturbed with
 zero-mean Gaussian noise whose variance grows with the motion (the four alphas), and
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spec import wrap_angle
+from ..motion import perturb_motion
 
 
 @dataclass(frozen=True)
@@ -49,33 +49,8 @@ class OdometryNoise:
         return (self.rot_from_rot, self.rot_from_trans, self.trans_from_trans, self.trans_from_rot)
 
 
-def relative_motion(before, after) -> tuple[float, float, float]:
-    """(rot1, trans, rot2) taking pose ``before`` to ``after``; trans < 0 for backward motion."""
-    dx, dy = after[0] - before[0], after[1] - before[1]
-    trans = math.hypot(dx, dy)
-    if trans < 1e-9:
-        return 0.0, 0.0, float(wrap_angle(after[2] - before[2]))
-    rot1 = float(wrap_angle(math.atan2(dy, dx) - before[2]))
-    if abs(rot1) > math.pi / 2:  # moving backwards: keep the rotations small
-        rot1 = float(wrap_angle(rot1 + math.pi))
-        trans = -trans
-    rot2 = float(wrap_angle(after[2] - before[2] - rot1))
-    return rot1, trans, rot2
-
-
-def compose_motion(pose, rot1: float, trans: float, rot2: float) -> np.ndarray:
-    """Apply (rot1, trans, rot2) to pose (x, y, theta)."""
-    heading = pose[2] + rot1
-    return np.array([pose[0] + trans * math.cos(heading), pose[1] + trans * math.sin(heading),
-                     float(wrap_angle(heading + rot2))])
-
-
 def noisy_motion(rot1: float, trans: float, rot2: float, noise: OdometryNoise,
                  rng: np.random.Generator) -> tuple[float, float, float]:
-    """What the odometer reports for a true motion (rot1, trans, rot2): Thrun's table 5.6 plus drift."""
-    a1, a2, a3, a4 = noise.alphas
-    z = rng.standard_normal(3)
-    rot1_hat = rot1 + z[0] * math.sqrt(a1 * rot1 ** 2 + a2 * trans ** 2)
-    trans_hat = trans + z[1] * math.sqrt(a3 * trans ** 2 + a4 * (rot1 ** 2 + rot2 ** 2))
-    rot2_hat = rot2 + z[2] * math.sqrt(a1 * rot2 ** 2 + a2 * trans ** 2) + noise.heading_drift * abs(trans)
-    return rot1_hat, trans_hat, rot2_hat
+    """What the odometer reports for a true motion (rot1, trans, rot2): the model's noise plus drift."""
+    r1, t, r2 = perturb_motion(rot1, trans, rot2, noise.alphas, rng.standard_normal(3))
+    return float(r1), float(t), float(r2) + noise.heading_drift * abs(trans)

@@ -12,8 +12,9 @@ import numpy as np
 import pymunk
 
 from .laser import Laser, LaserConfig
-from .odometry import OdometryNoise, compose_motion, noisy_motion, relative_motion
-from .spec import ROBOT_RADIUS, WorldSpec, wrap_angle
+from ..motion import compose_motion, relative_motion, wrap_angle
+from .odometry import OdometryNoise, noisy_motion
+from .spec import ROBOT_RADIUS, WorldSpec
 
 
 @dataclass(frozen=True)
@@ -49,11 +50,25 @@ class Simulator:
     def __init__(self, world: WorldSpec, robot: RobotConfig = RobotConfig(),
                  laser: LaserConfig = LaserConfig(), odometry: OdometryNoise = OdometryNoise()):
         self.world, self.robot_config, self.odometry_noise = world, robot, odometry
+        self._build_space()
+        self.laser = Laser(laser, self.wall_capsules())
+        self.rng = np.random.default_rng(0)
+        self.odometry_pose = np.zeros(3)
+        self.time = 0.0
+
+    def _build_space(self) -> None:
+        """A fresh pymunk space: walls, the robot and its drive joints.
+
+        Built anew at every reset, because pymunk carries solver state (warm-start
+        impulses of contacts and joints) from step to step: an old space would make the
+        same seed give a slightly different episode.
+        """
+        robot = self.robot_config
         self.space = pymunk.Space()
         self.space.gravity = (0.0, 0.0)
         # pymunk's defaults suit pixels; in metres allow 1 mm of overlap, not 10 cm
         self.space.collision_slop = 0.001
-        for ax, ay, bx, by, thickness in world.walls:
+        for ax, ay, bx, by, thickness in self.world.walls:
             shape = pymunk.Segment(self.space.static_body, (ax, ay), (bx, by), thickness / 2)
             shape.friction, shape.elasticity = 0.0, 0.0
             self.space.add(shape)
@@ -70,10 +85,6 @@ class Simulator:
         gear = pymunk.GearJoint(self.control_body, self.body, 0.0, 1.0)
         gear.error_bias, gear.max_bias, gear.max_force = 0.0, 3.0 * robot.max_turn_rate, 2000.0
         self.space.add(self.body, self.shape, self.control_body, pivot, gear)
-        self.laser = Laser(laser, self.wall_capsules())
-        self.rng = np.random.default_rng(0)
-        self.odometry_pose = np.zeros(3)
-        self.time = 0.0
 
     def wall_capsules(self) -> np.ndarray:
         """(K, 5) ax, ay, bx, by, radius of the pymunk wall shapes, for the laser kernel."""
@@ -89,6 +100,7 @@ class Simulator:
         """Put the robot at ``pose`` (default: the world's start), zero odometry there, take ``rng``."""
         self.rng = rng
         pose = self.world.start_pose if pose is None else np.asarray(pose, dtype=np.float64)
+        self._build_space()
         for body in (self.body, self.control_body):
             body.position = (float(pose[0]), float(pose[1]))
             body.angle = float(pose[2])

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -79,8 +78,3 @@ def point_segment_distance(px: np.ndarray, py: np.ndarray, walls: np.ndarray) ->
     length2 = np.maximum(dx * dx + dy * dy, 1e-300)
     t = np.clip(((px - ax) * dx + (py - ay) * dy) / length2, 0.0, 1.0)
     return np.hypot(px - (ax + t * dx), py - (ay + t * dy))
-
-
-def wrap_angle(a):
-    """Wrap angles to [-pi, pi) (the DESIGN convention's interval up to its end point)."""
-    return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,0 +1,11 @@
+"""Grid SLAM: a Rao-Blackwellized particle filter and replay of CARMEN logs.
+
+Imports nothing from :mod:`emmi_gym.world`: the filter sees odometry and ranges only.
+"""
+
+from .config import RBPFConfig
+from .occupancy import ParticleMaps
+from .rbpf import RBPF, UpdateMetrics
+from .sensor_model import CellCodes
+
+__all__ = ["RBPF", "CellCodes", "ParticleMaps", "RBPFConfig", "UpdateMetrics"]

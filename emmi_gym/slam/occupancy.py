@@ -1,0 +1,79 @@
+"""The particles' occupancy grids: one contiguous (M, H, W) int8 array of log-odds codes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..grid import GridGeometry
+from . import _kernels
+from .sensor_model import CellCodes
+
+
+class ParticleMaps:
+    """M occupancy grids on one :class:`GridGeometry`, updated by scans and copied by index.
+
+    ``codes`` (M, H, W) int8 holds the log-odds codes; ``hits`` (M, H, W, 3) int8 the
+    mean end-point position of each cell, for the scan matcher (see ``_kernels``).
+    Resampling copies the chosen particles into spare arrays with ``np.take`` and swaps
+    them in (one pass over memory, no allocation). The extent can grow in chunks (for
+    logs whose size is not known in advance); growing keeps cells aligned.
+    """
+
+    def __init__(self, geometry: GridGeometry, n_particles: int, codes: CellCodes):
+        self.geometry = geometry
+        self.cell_codes = codes
+        self.codes = np.zeros((n_particles, *geometry.shape), dtype=np.int8)
+        self.hits = np.zeros((n_particles, *geometry.shape, 3), dtype=np.int8)
+        self._spare_codes = np.empty_like(self.codes)
+        self._spare_hits = np.empty_like(self.hits)
+        self._stamp = np.zeros(geometry.shape, dtype=np.int64)
+        self._serial = 0
+
+    @property
+    def n_particles(self) -> int:
+        return self.codes.shape[0]
+
+    def insert(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range: float,
+               free_range: float) -> None:
+        """Insert one scan into every particle's grid at that particle's pose (see the kernel)."""
+        g, c = self.geometry, self.cell_codes
+        self._serial = _kernels.insert_scans(self.codes, self.hits, poses, ranges, angles, max_range, free_range,
+                                             c.occupied, c.free, c.clamp, g.origin_x, g.origin_y,
+                                             g.resolution, self._stamp, self._serial)
+
+    def resample(self, indices: np.ndarray) -> None:
+        """Particle i takes the grid of particle ``indices[i]``."""
+        np.take(self.codes, indices, axis=0, out=self._spare_codes)
+        np.take(self.hits, indices, axis=0, out=self._spare_hits)
+        self.codes, self._spare_codes = self._spare_codes, self.codes
+        self.hits, self._spare_hits = self._spare_hits, self.hits
+
+    def probabilities(self, particle: int) -> np.ndarray:
+        """Occupancy probabilities (H, W) of one particle's grid."""
+        return self.cell_codes.to_probability(self.codes[particle])
+
+    def grow_to_contain(self, xmin: float, ymin: float, xmax: float, ymax: float, chunk: float) -> bool:
+        """Enlarge the grids (by whole chunks of ``chunk`` metres) so the box fits; True if they grew."""
+        g = self.geometry
+        gx0, gx1, gy0, gy1 = g.extent
+        cells = max(1, int(round(chunk / g.resolution)))
+
+        def chunks_needed(missing: float) -> int:
+            return int(math.ceil(missing / (cells * g.resolution))) if missing > 0 else 0
+
+        left, right = chunks_needed(gx0 - xmin), chunks_needed(xmax - gx1)
+        down, up = chunks_needed(gy0 - ymin), chunks_needed(ymax - gy1)
+        if not (left or right or down or up):
+            return False
+        pad = ((0, 0), (down * cells, up * cells), (left * cells, right * cells))
+        self.codes = np.pad(self.codes, pad)
+        self.hits = np.pad(self.hits, pad + ((0, 0),))
+        self._spare_codes = np.empty_like(self.codes)
+        self._spare_hits = np.empty_like(self.hits)
+        self._stamp = np.pad(self._stamp, pad[1:])
+        self.geometry = GridGeometry(g.resolution, g.origin_x - left * cells * g.resolution,
+                                     g.origin_y - down * cells * g.resolution, self.codes.shape[1],
+                                     self.codes.shape[2])
+        return True

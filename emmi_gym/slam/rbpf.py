@@ -1,0 +1,266 @@
+"""A Rao-Blackwellized particle filter for grid SLAM (GMapping's design, Grisetti et al. 2007).
+
+Each particle is a pose path and its own occupancy grid. An update, once the robot
+has moved far enough (GMapping's linearUpdate / angularUpdate):
+
+1. propagate each particle with the odometry motion model (noise sampled);
+2. scan-match it against its own grid and draw its pose from the Gaussian fitted
+   around the match (the improved proposal), or keep the odometry sample when the
+   match is poor;
+3. weight by the proposal's normaliser (the scan likelihood, tempered by
+   ``likelihood_exponent``), in log space;
+4. resample (systematic) only when Neff / M < ``resample_threshold``;
+5. insert the scan into each particle's grid (eq. 4, log-odds) and extend its path;
+6. measure the certainty of the particle set (EMMI and the rest).
+
+The filter sees only odometry poses and laser ranges: it imports nothing from the
+simulator, so it runs the same on a recorded CARMEN log.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import certainty
+from ..grid import GridGeometry
+from ..motion import compose_motion, motion_std, perturb_motion, relative_motion
+from . import _kernels
+from .config import RBPFConfig
+from .occupancy import ParticleMaps
+from .resampling import systematic_resample
+from .sensor_model import CellCodes
+
+#: Floors on the motion model's pose deviations (m, m, rad), so that a standing update stays proper.
+_MOTION_FLOOR = np.array([0.01, 0.01, 0.005])
+_PHASES = ("scan_matching", "insertion", "weighting", "resampling", "metrics")
+
+
+@dataclass
+class UpdateMetrics:
+    """The certainty of the particle set after one update, and what the update did."""
+
+    step: int
+    time: float
+    emmi: float                    # bits/cell, eq. (11)
+    mean_information_best: float   # bits/cell, eq. (10) of the best particle's map
+    pose_entropy: float            # nats
+    weight_entropy: float          # nats
+    path_entropy: float            # nats
+    joint_entropy: float           # nats, eq. (12)
+    neff: float
+    resampled: bool
+    matched_fraction: float        # particles whose scan match was good enough
+    update_ms: float
+    phase_ms: dict = field(default_factory=dict)
+
+    def as_row(self) -> dict:
+        row = {k: v for k, v in self.__dict__.items() if k != "phase_ms"}
+        row.update({f"{k}_ms": v for k, v in self.phase_ms.items()})
+        return row
+
+
+class RBPF:
+    """Grid SLAM with M particles. ``geometry=None`` starts small and grows the grids in chunks."""
+
+    def __init__(self, config: RBPFConfig = RBPFConfig(), *, max_range: float,
+                 geometry: GridGeometry | None = None, grow_chunk: float = 10.0):
+        if not max_range > 0:
+            raise ValueError(f"max_range must be positive, got {max_range!r}")
+        self.config = config
+        self.max_range = float(max_range)
+        self.cell_codes = CellCodes.from_config(config)
+        self._fixed_geometry = geometry
+        self.grow_chunk = grow_chunk
+        self.rng = np.random.default_rng(0)
+        self.maps: ParticleMaps | None = None
+        self.poses = np.zeros((config.particles, 3))
+        self.log_weights = np.zeros(config.particles)
+        self.accumulated_log_weights = np.zeros(config.particles)
+        self._paths = np.zeros((config.particles, 64, 3))
+        self._n_path = 0
+        self._last_odometry: np.ndarray | None = None
+        self.step = 0
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def weights(self) -> np.ndarray:
+        return certainty.normalize_weights(self.log_weights, log=True)
+
+    @property
+    def paths(self) -> np.ndarray:
+        """(M, T, 3) pose of each particle at every update so far."""
+        return self._paths[:, :self._n_path]
+
+    @property
+    def best(self) -> int:
+        """The particle with the highest weight accumulated over its whole history (GMapping's choice)."""
+        return int(np.argmax(self.accumulated_log_weights))
+
+    @property
+    def geometry(self) -> GridGeometry:
+        return self.maps.geometry
+
+    def expected_map(self) -> np.ndarray:
+        """EM, eq. (6): probability grid (H, W)."""
+        return certainty.expected_map(self.maps.codes, self.log_weights, lut=self.cell_codes.probability,
+                                      log_weights=True)
+
+    def best_map(self) -> np.ndarray:
+        return self.maps.probabilities(self.best)
+
+    # ------------------------------------------------------------------ filtering
+
+    def reset(self, pose, rng: np.random.Generator) -> None:
+        """Start every particle at ``pose`` with empty grids; all randomness will come from ``rng``."""
+        pose = np.asarray(pose, dtype=np.float64)
+        m = self.config.particles
+        self.rng = rng
+        geometry = self._fixed_geometry or GridGeometry.covering(
+            pose[0] - self.max_range - 2, pose[1] - self.max_range - 2,
+            pose[0] + self.max_range + 2, pose[1] + self.max_range + 2, self.config.resolution)
+        self.maps = ParticleMaps(geometry, m, self.cell_codes)
+        self.poses = np.tile(pose, (m, 1))
+        self.log_weights = np.zeros(m)
+        self.accumulated_log_weights = np.zeros(m)
+        self._n_path = 0
+        self._last_odometry = None
+        self.step = 0
+
+    def process(self, odometry_pose, ranges, angles, timestamp: float = 0.0) -> UpdateMetrics | None:
+        """Feed one scan with the odometry pose at which it was taken.
+
+        The first scan initialises the grids. Later scans update the filter only once the
+        odometry has moved ``linear_update`` metres or turned ``angular_update`` radians
+        since the last update (odometry in between accumulates); others return None.
+        """
+        odometry_pose = np.asarray(odometry_pose, dtype=np.float64)
+        ranges = np.ascontiguousarray(ranges, dtype=np.float64)
+        angles = np.ascontiguousarray(angles, dtype=np.float64)
+        if ranges.shape != angles.shape:
+            raise ValueError(f"{ranges.size} ranges but {angles.size} beam angles")
+        if self.maps is None:
+            raise RuntimeError("call reset(pose, rng) before process()")
+        if self._last_odometry is None:
+            return self._initialise(odometry_pose, ranges, angles, timestamp)
+        rot1, trans, rot2 = relative_motion(self._last_odometry, odometry_pose)
+        turned = abs((odometry_pose[2] - self._last_odometry[2] + math.pi) % (2 * math.pi) - math.pi)
+        if abs(trans) < self.config.linear_update and turned < self.config.angular_update:
+            return None
+        self._last_odometry = odometry_pose
+        return self._update((rot1, trans, rot2), ranges, angles, timestamp)
+
+    def _initialise(self, odometry_pose, ranges, angles, timestamp) -> UpdateMetrics:
+        self._last_odometry = odometry_pose
+        t0 = time.perf_counter()
+        self._ensure_extent()
+        self.maps.insert(self.poses, ranges, angles, self.max_range, self.config.max_range_free)
+        self._append_path()
+        phases = dict.fromkeys(_PHASES, 0.0)
+        phases["insertion"] = time.perf_counter() - t0
+        return self._measure(timestamp, resampled=False, matched=0.0, phases=phases)
+
+    def _update(self, motion, ranges, angles, timestamp) -> UpdateMetrics:
+        cfg, m = self.config, self.config.particles
+        phases = {}
+        t0 = time.perf_counter()
+        # 1-3: motion sample, scan matching, improved proposal and its weight
+        motion_normals = self.rng.standard_normal((m, 3))
+        proposal_normals = self.rng.standard_normal((m, 3))
+        samples = compose_motion(self.poses, *perturb_motion(*motion, cfg.motion_alphas, motion_normals))
+        means = compose_motion(self.poses, *motion)
+        precisions, lognorms = self._motion_gaussians(motion)
+        skip = cfg.match_beam_skip
+        new_poses = np.empty_like(self.poses)
+        increments = np.empty(m)
+        matched = np.zeros(m, dtype=np.bool_)
+        n_hits = int(np.count_nonzero(ranges[::skip] < self.max_range))
+        g = self.geometry
+        _kernels.improved_proposal(
+            self.maps.codes, self.maps.hits, samples, means, precisions, lognorms, proposal_normals,
+            np.ascontiguousarray(ranges[::skip]), np.ascontiguousarray(angles[::skip]), cfg.match_climb_skip,
+            self.max_range,
+            g.origin_x, g.origin_y, g.resolution, cfg.match_window, cfg.likelihood_sigma,
+            cfg.match_linear_step, cfg.match_angular_step, cfg.match_refinements, cfg.match_max_iterations,
+            cfg.likelihood_exponent, max(1, int(math.ceil(cfg.min_match_fraction * n_hits))),
+            new_poses, increments, matched)
+        self.poses = new_poses
+        t1 = time.perf_counter()
+        phases["scan_matching"] = t1 - t0
+        # 3: weights in log space
+        self.log_weights = self.log_weights + increments
+        self.log_weights -= self.log_weights.max()
+        self.accumulated_log_weights += increments
+        neff = certainty.effective_sample_size(self.log_weights, log=True)
+        t2 = time.perf_counter()
+        phases["weighting"] = t2 - t1
+        # 4: selective resampling
+        resampled = neff < cfg.resample_threshold * m
+        if resampled:
+            self._resample(systematic_resample(self.weights, self.rng))
+        t3 = time.perf_counter()
+        phases["resampling"] = t3 - t2
+        # 5: map update and path
+        self._ensure_extent()
+        self.maps.insert(self.poses, ranges, angles, self.max_range, cfg.max_range_free)
+        self._append_path()
+        phases["insertion"] = time.perf_counter() - t3
+        return self._measure(timestamp, resampled, float(matched.mean()), phases)
+
+    def _motion_gaussians(self, motion) -> tuple[np.ndarray, np.ndarray]:
+        """Precision matrices and log-normalisers of the motion model, linearised at each particle."""
+        rot1, trans, rot2 = motion
+        sd = np.array(motion_std(rot1, trans, rot2, self.config.motion_alphas))
+        heading = self.poses[:, 2] + rot1
+        jac = np.zeros((self.poses.shape[0], 3, 3))
+        jac[:, 0, 0], jac[:, 0, 1] = -trans * np.sin(heading), np.cos(heading)
+        jac[:, 1, 0], jac[:, 1, 1] = trans * np.cos(heading), np.sin(heading)
+        jac[:, 2, 0], jac[:, 2, 2] = 1.0, 1.0
+        cov = jac @ np.diag(sd ** 2) @ jac.transpose(0, 2, 1) + np.diag(_MOTION_FLOOR ** 2)
+        sign, logdet = np.linalg.slogdet(cov)
+        return np.ascontiguousarray(np.linalg.inv(cov)), -0.5 * (3 * math.log(2 * math.pi) + logdet)
+
+    def _resample(self, indices: np.ndarray) -> None:
+        self.maps.resample(indices)
+        self.poses = self.poses[indices]
+        self._paths[:, :self._n_path] = self._paths[indices, :self._n_path]
+        self.accumulated_log_weights = self.accumulated_log_weights[indices]
+        self.log_weights = np.zeros_like(self.log_weights)
+
+    def _append_path(self) -> None:
+        if self._n_path == self._paths.shape[1]:
+            self._paths = np.concatenate([self._paths, np.zeros_like(self._paths)], axis=1)
+        self._paths[:, self._n_path] = self.poses
+        self._n_path += 1
+
+    def _ensure_extent(self) -> None:
+        if self._fixed_geometry is not None:
+            return
+        reach = self.max_range + 1.0
+        lo, hi = self.poses[:, :2].min(axis=0) - reach, self.poses[:, :2].max(axis=0) + reach
+        self.maps.grow_to_contain(lo[0], lo[1], hi[0], hi[1], self.grow_chunk)
+
+    def _measure(self, timestamp: float, resampled: bool, matched: float, phases: dict) -> UpdateMetrics:
+        """Every certainty measure of the particle set, through :mod:`emmi_gym.certainty`."""
+        t0 = time.perf_counter()
+        codes, lut = self.maps.codes, self.cell_codes.probability
+        w = self.weights
+        metrics = UpdateMetrics(
+            step=self.step, time=timestamp,
+            emmi=certainty.emmi(codes, w, lut=lut),
+            mean_information_best=certainty.mean_information(codes[self.best], lut=lut),
+            pose_entropy=certainty.pose_entropy(self.poses, w),
+            weight_entropy=certainty.weight_entropy(w),
+            path_entropy=certainty.path_entropy(self.paths, w),
+            joint_entropy=certainty.joint_entropy(self.paths, codes, w, lut=lut),
+            neff=certainty.effective_sample_size(w),
+            resampled=bool(resampled), matched_fraction=matched, update_ms=0.0)
+        phases["metrics"] = time.perf_counter() - t0
+        metrics.phase_ms = {k: 1e3 * phases.get(k, 0.0) for k in _PHASES}
+        metrics.update_ms = sum(metrics.phase_ms.values())
+        self.step += 1
+        return metrics
