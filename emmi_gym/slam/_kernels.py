@@ -32,6 +32,57 @@ def _add_clamped(grid, row, col, increment, clamp):
     grid[row, col] = v
 
 
+#: Kinds of insertion rays: a beam's hit (end cell occupied), a ray that frees its whole
+#: length (max-range reading), a ray that frees up to but not its end cell (a sub-ray).
+RAY_HIT, RAY_FREE, RAY_BOUNDED = 0, 1, 2
+
+
+@nb.njit(cache=True)
+def scan_rays(ranges, angles, gaps, max_range, free_range, resolution, jump):
+    """The rays that insert one scan as its polygon: each beam, plus sub-rays across the gap to the next.
+
+    A gap of ``gaps[b]`` radians after beam b (0 for a last beam without neighbour) gets
+    sub-rays no more than one cell apart at the far end (at most 16), so that every cell
+    of the scanned area is crossed whatever the resolution (MRPT's widened beams). Across
+    a continuous surface (both beams hit, ranges within ``jump`` metres plus 10%) a
+    sub-ray's length is interpolated; across a depth jump it takes the nearer one, never
+    entering the shadow. Sub-rays only free cells, up to but not their end cell: only
+    real end points claim occupancy. Returns (angle offsets, lengths, kinds) of all rays,
+    relative to the laser heading; kinds are RAY_HIT, RAY_FREE or RAY_BOUNDED.
+    """
+    n = ranges.size
+    total = 0
+    counts = np.ones(n, dtype=np.int64)
+    lengths = np.empty(n)
+    for b in range(n):
+        lengths[b] = ranges[b] if 0.0 < ranges[b] < max_range else (free_range if ranges[b] > 0.0 else 0.0)
+    for b in range(n):
+        if gaps[b] > 0.0:
+            far = max(lengths[b], lengths[(b + 1) % n])
+            counts[b] = min(16, max(1, int(math.ceil(far * gaps[b] / resolution))))
+        total += counts[b]
+    ray_angles = np.empty(total)
+    ray_lengths = np.empty(total)
+    ray_kinds = np.empty(total, dtype=np.int64)
+    k = 0
+    for b in range(n):
+        nb_ = (b + 1) % n
+        r0, r1 = ranges[b], ranges[nb_]
+        hit0 = 0.0 < r0 < max_range
+        smooth = hit0 and 0.0 < r1 < max_range and abs(r0 - r1) <= jump + 0.1 * min(r0, r1)
+        for j in range(counts[b]):
+            f = j / counts[b]
+            ray_angles[k] = angles[b] + f * gaps[b]
+            if j == 0:
+                ray_lengths[k] = lengths[b]
+                ray_kinds[k] = RAY_HIT if hit0 else RAY_FREE
+            else:
+                ray_lengths[k] = (1.0 - f) * r0 + f * r1 if smooth else min(lengths[b], lengths[nb_])
+                ray_kinds[k] = RAY_BOUNDED
+            k += 1
+    return ray_angles, ray_lengths, ray_kinds
+
+
 @nb.njit(cache=True, inline="always")
 def _accumulate_hit(cell, gx, gy, col, row):
     """Fold an end point at grid coordinates (gx, gy) into its cell's running mean."""
@@ -47,19 +98,19 @@ def _accumulate_hit(cell, gx, gy, col, row):
 
 
 @nb.njit(cache=True)
-def insert_scans(codes, hits, poses, ranges, angles, max_range, free_range, inc_occupied, inc_free, clamp,
+def insert_scans(codes, hits, poses, ray_angles, ray_lengths, ray_kinds, inc_occupied, inc_free, clamp,
                  origin_x, origin_y, resolution, stamp, serial):
-    """Insert one scan into each particle's grid at that particle's pose (eq. 4 in log-odds, Fig. 2 model).
+    """Insert one scan, given as rays (see :func:`scan_rays`), into each particle's grid at its pose.
 
-    Per particle and scan, a cell is updated at most once: ``inc_occupied`` if some
-    beam ends in it, else ``inc_free`` if some beam crosses it before its end (exact
-    cell traversal, Amanatides & Woo). A max-range reading frees ``free_range``
-    metres and marks nothing occupied. ``stamp`` (H, W) int64 remembers which cells
-    this scan already touched; ``serial`` grows by 2 per particle and is returned.
-    Every end point also updates its cell's mean hit position in ``hits``.
+    Eq. (4) in log-odds with the paper's peaked model (Fig. 2): per particle and scan a
+    cell is updated at most once, ``inc_occupied`` if some hit ray ends in it, else
+    ``inc_free`` if some ray crosses it before its end (exact cell traversal, Amanatides
+    & Woo; a RAY_FREE ray frees its end cell too). ``stamp`` (H, W) int64
+    remembers which cells this scan already touched; ``serial`` grows by 2 per particle
+    and is returned. Hit end points also update their cell's mean hit position.
     """
     m, h, w = codes.shape
-    n_beams = ranges.size
+    n_rays = ray_angles.size
     for i in range(m):
         grid = codes[i]
         hit_id = serial + 1
@@ -67,13 +118,12 @@ def insert_scans(codes, hits, poses, ranges, angles, max_range, free_range, inc_
         serial += 2
         gx0 = (poses[i, 0] - origin_x) / resolution
         gy0 = (poses[i, 1] - origin_y) / resolution
-        for b in range(n_beams):  # end points first: they win over crossings
-            r = ranges[b]
-            if r >= max_range or r <= 0.0:
+        for b in range(n_rays):  # end points first: they win over crossings
+            if ray_kinds[b] != RAY_HIT:
                 continue
-            a = poses[i, 2] + angles[b]
-            gx = gx0 + r * math.cos(a) / resolution
-            gy = gy0 + r * math.sin(a) / resolution
+            a = poses[i, 2] + ray_angles[b]
+            gx = gx0 + ray_lengths[b] * math.cos(a) / resolution
+            gy = gy0 + ray_lengths[b] * math.sin(a) / resolution
             col, row = int(math.floor(gx)), int(math.floor(gy))
             if not (0 <= row < h and 0 <= col < w):
                 continue
@@ -81,13 +131,12 @@ def insert_scans(codes, hits, poses, ranges, angles, max_range, free_range, inc_
             if stamp[row, col] != hit_id:
                 stamp[row, col] = hit_id
                 _add_clamped(grid, row, col, inc_occupied, clamp)
-        for b in range(n_beams):
-            r = ranges[b]
-            is_hit = r < max_range
-            length = r if is_hit else free_range
+        for b in range(n_rays):
+            length = ray_lengths[b]
             if length <= 0.0:
                 continue
-            a = poses[i, 2] + angles[b]
+            keep_end = ray_kinds[b] != RAY_FREE
+            a = poses[i, 2] + ray_angles[b]
             ex = gx0 + length * math.cos(a) / resolution
             ey = gy0 + length * math.sin(a) / resolution
             cx, cy = int(math.floor(gx0)), int(math.floor(gy0))
@@ -101,7 +150,7 @@ def insert_scans(codes, hits, poses, ranges, angles, max_range, free_range, inc_
             t_y = ((cy + 1 - gy0) if dy > 0 else (gy0 - cy)) * t_dy if dy != 0.0 else np.inf
             n_steps = abs(end_x - cx) + abs(end_y - cy)
             for k in range(n_steps + 1):
-                if k == n_steps and is_hit:
+                if k == n_steps and keep_end:
                     break
                 if not (0 <= cy < h and 0 <= cx < w):
                     break

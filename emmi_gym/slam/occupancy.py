@@ -11,6 +11,22 @@ from . import _kernels
 from .sensor_model import CellCodes
 
 
+def beam_gaps(angles: np.ndarray) -> np.ndarray:
+    """Angular gap from each beam to the next (radians); the last beam's gap joins it to the first
+    when the scan closes the circle, else it is 0."""
+    angles = np.asarray(angles, dtype=np.float64)
+    gaps = np.zeros(angles.size)
+    if angles.size < 2:
+        return gaps
+    gaps[:-1] = np.diff(angles)
+    if np.any(gaps[:-1] <= 0):
+        raise ValueError("beam angles must increase")
+    closing = angles[0] + 2.0 * math.pi - angles[-1]
+    if closing <= 1.5 * float(np.median(gaps[:-1])):
+        gaps[-1] = closing
+    return gaps
+
+
 class ParticleMaps:
     """M occupancy grids on one :class:`GridGeometry`, updated by scans and copied by index.
 
@@ -36,12 +52,17 @@ class ParticleMaps:
         return self.codes.shape[0]
 
     def insert(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range: float,
-               free_range: float) -> None:
-        """Insert one scan into every particle's grid at that particle's pose (see the kernel)."""
+               free_range: float, depth_jump: float = 0.3) -> None:
+        """Insert one scan, as its polygon, into every particle's grid at that particle's pose.
+
+        ``angles`` must increase; a scan that closes the circle has its last beam joined
+        to its first. See ``_kernels.scan_rays`` and ``_kernels.insert_scans``.
+        """
         g, c = self.geometry, self.cell_codes
-        self._serial = _kernels.insert_scans(self.codes, self.hits, poses, ranges, angles, max_range, free_range,
-                                             c.occupied, c.free, c.clamp, g.origin_x, g.origin_y,
-                                             g.resolution, self._stamp, self._serial)
+        rays = _kernels.scan_rays(ranges, angles, beam_gaps(angles), max_range, free_range, g.resolution,
+                                  depth_jump)
+        self._serial = _kernels.insert_scans(self.codes, self.hits, poses, *rays, c.occupied, c.free, c.clamp,
+                                             g.origin_x, g.origin_y, g.resolution, self._stamp, self._serial)
 
     def resample(self, indices: np.ndarray) -> None:
         """Particle i takes the grid of particle ``indices[i]``."""

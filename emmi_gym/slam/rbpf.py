@@ -64,16 +64,22 @@ class UpdateMetrics:
 
 
 class RBPF:
-    """Grid SLAM with M particles. ``geometry=None`` starts small and grows the grids in chunks."""
+    """Grid SLAM with M particles.
+
+    ``geometry`` fixes the grids' extent (``None``: a square around the start pose);
+    with ``grow_chunk`` (metres) the grids grow in such chunks whenever a particle's
+    laser reach leaves them. The joint entropy's map term (eq. 8) counts every cell of
+    the extent, so it is comparable between updates only while the extent is fixed.
+    """
 
     def __init__(self, config: RBPFConfig = RBPFConfig(), *, max_range: float,
-                 geometry: GridGeometry | None = None, grow_chunk: float = 10.0):
+                 geometry: GridGeometry | None = None, grow_chunk: float | None = None):
         if not max_range > 0:
             raise ValueError(f"max_range must be positive, got {max_range!r}")
         self.config = config
         self.max_range = float(max_range)
         self.cell_codes = CellCodes.from_config(config)
-        self._fixed_geometry = geometry
+        self._initial_geometry = geometry
         self.grow_chunk = grow_chunk
         self.rng = np.random.default_rng(0)
         self.maps: ParticleMaps | None = None
@@ -120,7 +126,7 @@ class RBPF:
         pose = np.asarray(pose, dtype=np.float64)
         m = self.config.particles
         self.rng = rng
-        geometry = self._fixed_geometry or GridGeometry.covering(
+        geometry = self._initial_geometry or GridGeometry.covering(
             pose[0] - self.max_range - 2, pose[1] - self.max_range - 2,
             pose[0] + self.max_range + 2, pose[1] + self.max_range + 2, self.config.resolution)
         self.maps = ParticleMaps(geometry, m, self.cell_codes)
@@ -238,7 +244,7 @@ class RBPF:
         self._n_path += 1
 
     def _ensure_extent(self) -> None:
-        if self._fixed_geometry is not None:
+        if self.grow_chunk is None:
             return
         reach = self.max_range + 1.0
         lo, hi = self.poses[:, :2].min(axis=0) - reach, self.poses[:, :2].max(axis=0) + reach

@@ -1,0 +1,85 @@
+"""Scores against ground truth: trajectory error (ATE) and map accuracy.
+
+Neutral helpers: the SLAM replay, the tests and the environment's ``info`` use them;
+they know arrays, not worlds or filters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .certainty import DEFAULT_OBSERVED_TOL, observed_cells
+from .grid import GridGeometry
+
+
+def align_se2(estimated_xy: np.ndarray, true_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation R (2, 2) and translation t (2,) minimising sum |R e + t - g|^2 (Horn / Umeyama, no scale)."""
+    mu_e, mu_g = estimated_xy.mean(axis=0), true_xy.mean(axis=0)
+    cov = (true_xy - mu_g).T @ (estimated_xy - mu_e)
+    u, _, vt = np.linalg.svd(cov)
+    d = np.sign(np.linalg.det(u @ vt))
+    rotation = u @ np.diag([1.0, d]) @ vt
+    return rotation, mu_g - rotation @ mu_e
+
+
+def absolute_trajectory_error(estimated, truth, *, align: bool = True) -> float:
+    """ATE: RMS position error (m) between matching poses of two (T, >=2) trajectories.
+
+    With ``align=True`` (the usual definition, Sturm et al. 2012) the estimate is first
+    moved by the rigid 2-D transform that fits it best to the truth; without, the
+    frames are taken to coincide (as when the filter starts at the true start pose).
+    """
+    e = np.asarray(estimated, dtype=np.float64)[:, :2]
+    g = np.asarray(truth, dtype=np.float64)[:, :2]
+    if e.shape != g.shape or e.shape[0] == 0:
+        raise ValueError(f"trajectories must have the same number of poses (>0), got {e.shape} and {g.shape}")
+    if align and e.shape[0] >= 2:
+        rotation, translation = align_se2(e, g)
+        e = e @ rotation.T + translation
+    return float(np.sqrt(np.mean(np.sum((e - g) ** 2, axis=1))))
+
+
+def trajectory_alignment(estimated, truth) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid transform (R, t) taking the estimated trajectory's frame onto the truth's."""
+    return align_se2(np.asarray(estimated, dtype=np.float64)[:, :2], np.asarray(truth, dtype=np.float64)[:, :2])
+
+
+def labels_in_map_frame(truth_grid: np.ndarray, geometry: GridGeometry, transform, unknown: int = -1) -> np.ndarray:
+    """The truth's label under each map cell's centre, moved by ``transform`` = (R, t) into the truth's frame.
+
+    Both grids share ``geometry``; centres that land outside it are ``unknown``.
+    """
+    rotation, translation = transform
+    x, y = geometry.cell_centres()
+    wx = rotation[0, 0] * x + rotation[0, 1] * y + translation[0]
+    wy = rotation[1, 0] * x + rotation[1, 1] * y + translation[1]
+    row, col = geometry.cell_of(wx, wy)
+    inside = geometry.inside(row, col)
+    labels = np.full(truth_grid.shape, unknown, dtype=truth_grid.dtype)
+    labels[inside] = truth_grid[row[inside], col[inside]]
+    return labels
+
+
+def map_accuracy(probabilities: np.ndarray, truth_grid: np.ndarray, *, geometry: GridGeometry | None = None,
+                 transform=None, unknown: int = -1, occupied: int = 1,
+                 observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """Share of the cells known to both the map and the truth on which they agree (occupied or free).
+
+    A map cell is known when it is observed in the sense of eq. (10); it says occupied
+    when p > 0.5. ``truth_grid`` holds ``unknown`` / free / ``occupied`` labels on the
+    same grid. With ``transform`` (R, t), e.g. the :func:`trajectory_alignment` of the
+    path that built the map, the map is first registered onto the truth (needs
+    ``geometry``), as trajectories are aligned for the ATE. NaN when no cell is known
+    to both.
+    """
+    p = np.asarray(probabilities)
+    if p.shape != truth_grid.shape:
+        raise ValueError(f"map {p.shape} and truth {truth_grid.shape} must share one grid")
+    if transform is not None:
+        if geometry is None:
+            raise ValueError("map_accuracy with a transform needs the grid's geometry")
+        truth_grid = labels_in_map_frame(truth_grid, geometry, transform, unknown)
+    known = observed_cells(p, observed_tol) & (truth_grid != unknown)
+    if not known.any():
+        return float("nan")
+    return float(np.mean((p[known] > 0.5) == (truth_grid[known] == occupied)))

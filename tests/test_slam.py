@@ -1,0 +1,222 @@
+"""The RBPF behaves as a grid SLAM should, and as the paper's figures say."""
+
+import numpy as np
+import pytest
+
+from emmi_gym import certainty
+from emmi_gym.evaluation import absolute_trajectory_error, map_accuracy, trajectory_alignment
+from emmi_gym.grid import GridGeometry
+from emmi_gym.slam import RBPF, CellCodes, ParticleMaps, RBPFConfig
+from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world, rasterise
+
+SEEDS = range(6)
+
+
+def loop_run(seed, config=RBPFConfig()):
+    """Drive the loop_corridor loop (start -> decision -> start) and run the RBPF on it."""
+    world = load_world("loop_corridor")
+    sim = Simulator(world)
+    rec = drive_route(sim, world.route("to_decision") + world.route("close_loop")[1:], np.random.default_rng(seed))
+    geometry = GridGeometry.covering(*world.bounds, config.resolution)
+    slam = RBPF(config, max_range=sim.laser.config.max_range, geometry=geometry)
+    slam.reset(rec.odometry_poses[0], np.random.default_rng(1000 + seed))
+    rows, steps = [], []
+    for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans)):
+        metrics = slam.process(pose, ranges, sim.laser.config.angles, rec.times[k])
+        if metrics is not None:
+            rows.append(metrics)
+            steps.append(k)
+    return world, rec, slam, rows, np.array(steps), geometry
+
+
+@pytest.fixture(scope="module")
+def loop_runs():
+    return [loop_run(seed) for seed in SEEDS]
+
+
+def test_accuracy_after_the_loop_closes(loop_runs):
+    """15 particles, after the loop closed: the best path's ATE (frames coincide at the start, as
+    for dead reckoning) is < 0.5 m and >= 3x better than dead reckoning's; the best map, registered
+    by the path's alignment, agrees with the truth on >= 90% of the cells both know (median)."""
+    accuracies = []
+    for world, rec, slam, rows, steps, geometry in loop_runs:
+        truth = rec.true_poses[steps]
+        best = slam.paths[slam.best]
+        ate = absolute_trajectory_error(best, truth, align=False)
+        ate_odometry = absolute_trajectory_error(rec.odometry_poses[steps], truth, align=False)
+        assert ate < 0.5
+        assert ate * 3 <= ate_odometry
+        accuracies.append(map_accuracy(slam.best_map(), rasterise(world, 0.1, geometry).grid, geometry=geometry,
+                                       transform=trajectory_alignment(best, truth)))
+    assert np.median(accuracies) >= 0.90, accuracies
+    assert min(accuracies) >= 0.85, accuracies
+
+
+def _closing_update(rec, steps):
+    """The first update back in the bottom corridor (x > 3, y < 2) after the left corridor's lower half."""
+    xy = rec.true_poses[steps, :2]
+    left = np.flatnonzero((xy[:, 0] < 2.0) & (xy[:, 1] < 12.0))[0]
+    back = np.flatnonzero((np.arange(len(steps)) > left) & (xy[:, 0] > 3.0) & (xy[:, 1] < 2.0))
+    assert back.size, "the robot never got back to the bottom corridor"
+    return int(back[0])
+
+
+def test_loop_closure_shows_in_emmi_and_neff(loop_runs):
+    """Fig. 6: EMMI higher a few updates after re-entering the start area; Neff drops there."""
+    emmi_up = neff_drop = 0
+    for _, rec, slam, rows, steps, _ in loop_runs:
+        close = _closing_update(rec, steps)
+        emmi = np.array([r.emmi for r in rows])
+        emmi_up += emmi[min(close + 4, len(rows) - 1)] > emmi[close - 1]
+        window = rows[max(close - 3, 0):close + 8]
+        neff_drop += any(r.resampled or r.neff < 0.8 * slam.config.particles for r in window)
+    assert emmi_up >= 4 and neff_drop >= 4, (emmi_up, neff_drop)
+
+
+def test_metrics_are_those_of_the_certainty_functions(loop_runs):
+    _, _, slam, rows, _, _ = loop_runs[0]
+    last = rows[-1]
+    w, lut = slam.weights, slam.cell_codes.probability
+    assert last.emmi == certainty.emmi(slam.maps.codes, w, lut=lut)
+    assert last.emmi == pytest.approx(certainty.mean_information(slam.expected_map()), abs=1e-12)
+    assert last.joint_entropy == pytest.approx(
+        certainty.joint_entropy(slam.paths, slam.maps.codes.astype(np.float64) * slam.cell_codes.step, w,
+                                logodds=True), rel=1e-9)
+    assert last.mean_information_best == pytest.approx(certainty.mean_information(slam.best_map()), abs=1e-12)
+    assert last.neff == pytest.approx(1 / np.sum(w**2))
+    assert 0 < last.emmi < 1 and 1 <= last.neff <= slam.config.particles
+    assert all(set(r.phase_ms) == {"scan_matching", "insertion", "weighting", "resampling", "metrics"} for r in rows)
+
+
+def test_same_seed_same_filter_bit_for_bit():
+    a = loop_run(3, RBPFConfig(particles=5))
+    b = loop_run(3, RBPFConfig(particles=5))
+    np.testing.assert_array_equal(a[2].paths, b[2].paths)
+    np.testing.assert_array_equal(a[2].log_weights, b[2].log_weights)
+    np.testing.assert_array_equal(a[2].maps.codes, b[2].maps.codes)
+    assert [r.emmi for r in a[3]] == [r.emmi for r in b[3]]
+
+
+# ------------------------------------------------------------------ the paper's Figs. 3 and 4
+
+
+def _scans_in_office(n_scans, seed=0):
+    world = load_world("office")
+    sim = Simulator(world, laser=LaserConfig(n_beams=360, drop_probability=0.0))
+    rec = drive_route(sim, [world.start.xy, (9.0, 1.0), (10.0, 6.0)], np.random.default_rng(seed))
+    picks = np.linspace(0, len(rec.times) - 1, n_scans).astype(int)
+    return world, sim.laser.config.angles, rec.true_poses[picks], rec.scans[picks]
+
+
+def _mi_of(poses, scans, angles, geometry, config=RBPFConfig()):
+    maps = ParticleMaps(geometry, 1, CellCodes.from_config(config))
+    for pose, ranges in zip(poses, scans):
+        maps.insert(pose[None], ranges, angles, 8.0, config.max_range_free)
+    return certainty.mean_information(maps.probabilities(0))
+
+
+def test_fig3_aligned_fusion_raises_mi_misaligned_lowers_it():
+    """Fig. 3: two scans 1 m apart; fused where they were taken, the map's MI rises above either
+    scan's; fused with the second one misplaced, it is lower, and the lower the larger the error."""
+    world, angles, poses, scans = _scans_in_office(12)
+    geometry = GridGeometry.covering(*world.bounds, 0.1)
+    first, second = poses[0], poses[1]
+    one = _mi_of([first], scans[:1], angles, geometry)
+    other = _mi_of([second], scans[1:2], angles, geometry)
+    fused = [_mi_of([first, second + error], scans[:2], angles, geometry)
+             for error in (np.zeros(3), np.array([0.1, 0.0, 0.05]), np.array([0.3, -0.2, 0.15]))]
+    assert fused[0] > 2 * max(one, other)
+    assert fused[0] > fused[1] > fused[2]
+
+
+def test_fig4_mi_is_nearly_resolution_independent_while_entropy_grows():
+    world, angles, poses, scans = _scans_in_office(40)
+    mi, entropy = [], []
+    for resolution in (0.2, 0.1, 0.05, 0.025):
+        config = RBPFConfig(resolution=resolution)
+        geometry = GridGeometry.covering(*world.bounds, resolution)
+        maps = ParticleMaps(geometry, 1, CellCodes.from_config(config))
+        for pose, ranges in zip(poses, scans):
+            maps.insert(pose[None], ranges, angles, 8.0, 0.0)
+        p = maps.probabilities(0)
+        mi.append(certainty.mean_information(p))
+        entropy.append(certainty.map_entropy(p))
+    assert (max(mi) - min(mi)) / max(mi) < 0.10, mi
+    assert all(a < b for a, b in zip(entropy, entropy[1:])), entropy
+
+
+# ------------------------------------------------------------------ machinery
+
+
+def test_resampling_copies_grids_by_index():
+    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 4, 5), 3, CellCodes.from_config(RBPFConfig()))
+    for i in range(3):
+        maps.codes[i] = i
+        maps.hits[i] = 10 * i
+    maps.resample(np.array([2, 2, 0]))
+    assert [int(maps.codes[i, 0, 0]) for i in range(3)] == [2, 2, 0]
+    assert [int(maps.hits[i, 1, 1, 0]) for i in range(3)] == [20, 20, 0]
+    maps.codes[0, 0, 0] = 5  # copies are independent
+    assert maps.codes[1, 0, 0] == 2
+
+
+def test_grids_grow_in_chunks_and_keep_cells_aligned():
+    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 10, 10), 2, CellCodes.from_config(RBPFConfig()))
+    maps.codes[1, 3, 4] = 7
+    assert maps.grow_to_contain(-0.5, 0.2, 1.5, 0.8, chunk=1.0)
+    g = maps.geometry
+    assert (g.origin_x, g.origin_y) == (-1.0, 0.0) and g.cols == 30 and g.rows == 10
+    row, col = g.cell_of(0.45, 0.35)
+    assert maps.codes[1, row, col] == 7
+    assert not maps.grow_to_contain(-0.5, 0.2, 1.5, 0.8, chunk=1.0)
+
+
+def test_update_policy_waits_for_motion():
+    slam = RBPF(RBPFConfig(particles=3, linear_update=0.5, angular_update=0.3), max_range=8.0,
+                geometry=GridGeometry(0.1, -5, -5, 100, 100))
+    slam.reset([0, 0, 0], np.random.default_rng(0))
+    angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
+    ranges = np.full(90, 3.0)
+    assert slam.process([0, 0, 0], ranges, angles) is not None  # the first scan initialises
+    assert slam.process([0.3, 0, 0], ranges, angles) is None
+    assert slam.process([0.3, 0, 0.2], ranges, angles) is None
+    assert slam.process([0.55, 0, 0.2], ranges, angles) is not None
+    assert slam.process([0.55, 0, 0.55], ranges, angles) is not None  # turned 0.35 rad
+
+
+def test_bad_input_is_named():
+    slam = RBPF(RBPFConfig(particles=2), max_range=8.0)
+    with pytest.raises(RuntimeError, match="reset"):
+        slam.process([0, 0, 0], [1.0], [0.0])
+    slam.reset([0, 0, 0], np.random.default_rng(0))
+    with pytest.raises(ValueError, match="3 ranges but 2 beam angles"):
+        slam.process([0, 0, 0], [1.0, 2.0, 3.0], [0.0, 1.0])
+    for bad in (dict(particles=0), dict(resolution=-0.1), dict(logodds_free=0.2), dict(likelihood_exponent=0),
+                dict(motion_alphas=(1, 2)), dict(resample_threshold=2), dict(logodds_clamp=100)):
+        with pytest.raises(ValueError, match="RBPF|logodds_clamp"):
+            RBPFConfig(**bad)
+
+
+def test_ate_alignment_and_registered_map_accuracy():
+    """A trajectory rotated and shifted as a whole has zero aligned ATE; a map registered by
+    the same transform is scored as if it had been built in the truth's frame."""
+    rng = np.random.default_rng(0)
+    truth = np.column_stack([rng.uniform(0, 5, 50), rng.uniform(0, 5, 50), np.zeros(50)])
+    angle, shift = 0.1, np.array([0.4, -0.2])
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    moved = truth.copy()
+    moved[:, :2] = truth[:, :2] @ rot.T + shift
+    assert absolute_trajectory_error(moved, truth) == pytest.approx(0.0, abs=1e-9)
+    assert absolute_trajectory_error(moved, truth, align=False) > 0.2
+    r, t = trajectory_alignment(moved, truth)
+    np.testing.assert_allclose(r, rot.T, atol=1e-9)
+    geometry = GridGeometry(0.1, -2.0, -2.0, 60, 60)
+    labels = np.full(geometry.shape, -1)
+    labels[20:40, 20:40] = 0
+    labels[20:40, 20] = 1
+    probabilities = np.where(labels == 1, 0.9, np.where(labels == 0, 0.1, 0.5))
+    assert map_accuracy(probabilities, labels) == 1.0
+    identity = (np.eye(2), np.zeros(2))
+    assert map_accuracy(probabilities, labels, geometry=geometry, transform=identity) == 1.0
+    shifted = (np.eye(2), np.array([0.3, 0.0]))  # the truth seen 3 cells off: the wall is missed
+    assert map_accuracy(probabilities, labels, geometry=geometry, transform=shifted) < 0.97

@@ -1,0 +1,298 @@
+"""Each RBPF kernel against a plain-Python twin on small random cases."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from emmi_gym.certainty import _kernels as certainty_kernels
+from emmi_gym.slam import _kernels as K
+from emmi_gym.slam.occupancy import beam_gaps
+from emmi_gym.slam.resampling import systematic_resample
+
+RES = 0.1
+
+
+def crossed_cells(x0, y0, x1, y1):
+    """Cells (row, col) whose interior the segment crosses: brute force over the bounding box.
+
+    An independent way to get the exact traversal (Liang-Barsky clipping per cell),
+    in the order of the distance at which the segment enters each cell.
+    """
+    cells = []
+    for col in range(int(math.floor(min(x0, x1))), int(math.floor(max(x0, x1))) + 1):
+        for row in range(int(math.floor(min(y0, y1))), int(math.floor(max(y0, y1))) + 1):
+            t0, t1 = 0.0, 1.0
+            ok = True
+            for p, q in ((-(x1 - x0), x0 - col), (x1 - x0, col + 1 - x0), (-(y1 - y0), y0 - row),
+                         (y1 - y0, row + 1 - y0)):
+                if p == 0:
+                    ok &= q > 0
+                elif p < 0:
+                    t0 = max(t0, q / p)
+                else:
+                    t1 = min(t1, q / p)
+            if ok and t0 < t1:
+                cells.append((t0, row, col))
+    return [(r, c) for _, r, c in sorted(cells)]
+
+
+def twin_rays(ranges, angles, gaps, max_range, free_range, jump):
+    """(angle, length, kind) of every insertion ray: each beam and the sub-rays across its gap."""
+    n = len(ranges)
+    lengths = [r if 0 < r < max_range else (free_range if r > 0 else 0.0) for r in ranges]
+    rays = []
+    for b in range(n):
+        nxt = (b + 1) % n
+        count = 1
+        if gaps[b] > 0:
+            count = min(16, max(1, math.ceil(max(lengths[b], lengths[nxt]) * gaps[b] / RES)))
+        r0, r1 = ranges[b], ranges[nxt]
+        hit0 = 0 < r0 < max_range
+        smooth = hit0 and 0 < r1 < max_range and abs(r0 - r1) <= jump + 0.1 * min(r0, r1)
+        for j in range(count):
+            f = j / count
+            if j == 0:
+                rays.append((angles[b], lengths[b], K.RAY_HIT if hit0 else K.RAY_FREE))
+            else:
+                length = (1 - f) * r0 + f * r1 if smooth else min(lengths[b], lengths[nxt])
+                rays.append((angles[b] + f * gaps[b], length, K.RAY_BOUNDED))
+    return rays
+
+
+def twin_insert(codes, poses, rays, inc_occ, inc_free, clamp):
+    """Per particle and scan: hit end-point cells +inc_occ once; other crossed cells inc_free once."""
+    codes = codes.astype(np.int64).copy()
+    m, h, w = codes.shape
+    for i in range(m):
+        x, y, th = poses[i]
+        gx0, gy0 = x / RES, y / RES
+        hit_cells, free_cells = set(), set()
+        for a, length, kind in rays:
+            if kind == K.RAY_HIT:
+                hit_cells.add((int(math.floor(gy0 + length * math.sin(th + a) / RES)),
+                               int(math.floor(gx0 + length * math.cos(th + a) / RES))))
+        for a, length, kind in rays:
+            if length <= 0:
+                continue
+            ex, ey = gx0 + length * math.cos(th + a) / RES, gy0 + length * math.sin(th + a) / RES
+            path = crossed_cells(gx0, gy0, ex, ey)
+            if kind != K.RAY_FREE:
+                path = [c for c in path if c != (int(math.floor(ey)), int(math.floor(ex)))]
+            for row, col in path:
+                if not (0 <= row < h and 0 <= col < w):
+                    break
+                free_cells.add((row, col))
+        for row, col in hit_cells:
+            if 0 <= row < h and 0 <= col < w:
+                codes[i, row, col] = np.clip(codes[i, row, col] + inc_occ, -clamp, clamp)
+        for row, col in free_cells - hit_cells:
+            codes[i, row, col] = np.clip(codes[i, row, col] + inc_free, -clamp, clamp)
+    return codes
+
+
+@given(st.integers(0, 2**31), st.integers(1, 3), st.integers(3, 25), st.booleans(), st.booleans())
+def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle):
+    rng = np.random.default_rng(seed)
+    h, w = 30, 40
+    codes = rng.integers(-60, 60, size=(m, h, w)).astype(np.int8)
+    poses = np.column_stack([rng.uniform(0.5, 3.5, m), rng.uniform(0.5, 2.5, m), rng.uniform(-np.pi, np.pi, m)])
+    ranges = rng.uniform(0.05, 2.0, n_beams)
+    if with_max_range:
+        ranges[rng.random(n_beams) < 0.3] = 2.0
+    span = 2 * np.pi if full_circle else rng.uniform(0.5, 3.0)
+    angles = -span / 2 + np.arange(n_beams) * span / (n_beams if full_circle else n_beams - 1)
+    gaps = beam_gaps(angles)
+    assert (gaps[-1] > 0) == full_circle
+    rays = K.scan_rays(ranges, angles, gaps, 2.0, 0.7, RES, 0.3)
+    want_rays = twin_rays(ranges, angles, gaps, 2.0, 0.7, 0.3)
+    np.testing.assert_allclose(np.column_stack(rays), np.array(want_rays), atol=1e-12)
+    expected = twin_insert(codes, poses, want_rays, 17, -8, 100)
+    got = codes.copy()
+    hits = np.zeros((m, h, w, 3), dtype=np.int8)
+    stamp = np.zeros((h, w), dtype=np.int64)
+    serial = K.insert_scans(got, hits, poses, *rays, 17, -8, 100, 0.0, 0.0, RES, stamp, 0)
+    assert serial == 2 * m
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_hit_means_follow_the_end_points():
+    """One cell hit repeatedly: its stored mean is the mean of the end points (to 1/254 of a cell)."""
+    codes = np.zeros((1, 10, 10), dtype=np.int8)
+    hits = np.zeros((1, 10, 10, 3), dtype=np.int8)
+    stamp = np.zeros((10, 10), dtype=np.int64)
+    ends = [(0.52, 0.57), (0.58, 0.51), (0.55, 0.59)]
+    serial = 0
+    for ex, ey in ends:
+        r = math.hypot(ex - 0.05, ey - 0.05)
+        a = math.atan2(ey - 0.05, ex - 0.05)
+        serial = K.insert_scans(codes, hits, np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
+                                np.array([K.RAY_HIT]), 17, -8, 100, 0.0, 0.0, RES, stamp, serial)
+    stored = hits[0, 5, 5]
+    assert stored[2] == 3
+    offset_from_centre = np.mean(ends, axis=0) / RES - 5.5  # in cells, from the centre of cell (5, 5)
+    np.testing.assert_allclose(stored[:2] / 254, offset_from_centre, atol=1 / 254 + 1e-9)
+
+
+def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, window, sigma):
+    h, w = grid.shape
+    scale = RES * RES / (2 * sigma * sigma)
+    null = -((window + 1.0) ** 2) * scale
+    total, matched = 0.0, 0
+    for r, a in zip(ranges, angles):
+        if not 0 < r < max_range:
+            continue
+        c, s = math.cos(theta + a), math.sin(theta + a)
+        hx, hy = (x + r * c) / RES, (y + r * s) / RES
+        bx, by = round(-math.sqrt(2) * c), round(-math.sqrt(2) * s)
+        hcx, hcy = math.floor(hx), math.floor(hy)
+        if not (window + 1 <= hcx < w - window - 1 and window + 1 <= hcy < h - window - 1):
+            total += null
+            continue
+        best = math.inf
+        for row in range(hcy - window, hcy + window + 1):
+            for col in range(hcx - window, hcx + window + 1):
+                if grid[row, col] > 0 and grid[row + by, col + bx] < 0:
+                    mx = col + 0.5 + hits[row, col, 0] / 254
+                    my = row + 0.5 + hits[row, col, 1] / 254
+                    best = min(best, (mx - hx) ** 2 + (my - hy) ** 2)
+        if best < math.inf:
+            total -= best * scale
+            matched += 1
+        else:
+            total += null
+    return total, matched
+
+
+def random_map(rng, h=40, w=40):
+    grid = rng.choice(np.array([-50, 0, 40], dtype=np.int8), size=(h, w), p=[0.5, 0.2, 0.3])
+    hits = rng.integers(-127, 128, size=(h, w, 3)).astype(np.int8)
+    return grid, hits
+
+
+@given(st.integers(0, 2**31), st.integers(0, 2))
+def test_scan_loglik_matches_twin(seed, window):
+    rng = np.random.default_rng(seed)
+    grid, hits = random_map(rng)
+    x, y, theta = rng.uniform(1.2, 2.8), rng.uniform(1.2, 2.8), rng.uniform(-np.pi, np.pi)
+    ranges = rng.uniform(0.1, 2.5, 30)
+    ranges[::7] = 3.0  # max range: skipped
+    angles = np.linspace(-np.pi, np.pi, 30, endpoint=False)
+    offsets = np.empty((30, 4))
+    n = K.beam_offsets(theta, ranges, angles, 3.0, RES, offsets)
+    scale = RES * RES / (2 * 0.075**2)
+    got = K.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, window, scale, -((window + 1.0) ** 2) * scale)
+    want = twin_loglik(grid, hits, x, y, theta, ranges, angles, 3.0, window, 0.075)
+    assert got[1] == want[1]
+    assert got[0] == pytest.approx(want[0], rel=1e-9, abs=1e-9)
+
+
+def twin_hill_climb(grid, hits, start, ranges, angles, mean, precision, lstep, astep, refinements, iterations):
+    def value(p):
+        ll, n = twin_loglik(grid, hits, p[0], p[1], p[2], ranges, angles, 3.0, 1, 0.075)
+        d = p - mean
+        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+        return ll - 0.5 * d @ precision @ d, n
+
+    pose = start.copy()
+    best, matched = value(pose)
+    refinement = 0
+    for _ in range(iterations):
+        best_pose = None
+        for move in range(6):
+            cand = pose.copy()
+            cand[move // 2] += (1 if move % 2 == 0 else -1) * (astep if move // 2 == 2 else lstep)
+            v, n = value(cand)
+            if v > best:
+                best, matched, best_pose = v, n, cand
+        if best_pose is not None:
+            pose = best_pose
+        else:
+            refinement += 1
+            if refinement > refinements:
+                break
+            lstep, astep = lstep / 2, astep / 2
+    return pose, best, matched
+
+
+@given(st.integers(0, 2**31))
+def test_hill_climb_matches_twin(seed):
+    rng = np.random.default_rng(seed)
+    grid, hits = random_map(rng)
+    start = np.array([rng.uniform(1.5, 2.5), rng.uniform(1.5, 2.5), rng.uniform(-3, 3)])
+    mean = start + rng.normal(0, 0.05, 3)
+    precision = np.diag([400.0, 400.0, 1000.0])
+    ranges = rng.uniform(0.3, 1.2, 24)
+    angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
+    scale = RES * RES / (2 * 0.075**2)
+    geo = np.array([0.0, 0.0, RES])
+    got = K.hill_climb(grid, hits, start, ranges, angles, 3.0, geo, 1, scale, -4 * scale, mean, precision,
+                       0.05, 0.05, 3, 30)
+    want = twin_hill_climb(grid, hits, start, ranges, angles, mean, precision, 0.05, 0.05, 3, 30)
+    np.testing.assert_allclose(got[0], want[0], atol=1e-9)
+    assert got[1] == pytest.approx(want[1], abs=1e-6)
+    assert got[2] == want[2]
+
+
+def test_improved_proposal_matches_twin():
+    """The Gaussian fitted on the 7-point stencil around the match, the draw and the weight."""
+    rng = np.random.default_rng(4)
+    grid, hits = random_map(rng)
+    codes, all_hits = grid[None].copy(), hits[None].copy()
+    sample = np.array([[2.0, 2.1, 0.3]])
+    mean = sample + 0.02
+    precision = np.diag([400.0, 400.0, 1000.0])[None]
+    lognorm = np.array([1.5])
+    normals = rng.standard_normal((1, 3))
+    ranges = rng.uniform(0.3, 1.2, 24)
+    angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
+    new, inc, flags = np.empty((1, 3)), np.empty(1), np.zeros(1, dtype=np.bool_)
+    K.improved_proposal(codes, all_hits, sample, mean, precision, lognorm, normals, ranges, angles, 1, 3.0, 0.0,
+                        0.0, RES, 1, 0.075, 0.05, 0.05, 3, 30, 0.5, 1, new, inc, flags)
+    best, _, _ = twin_hill_climb(grid, hits, sample[0], ranges, angles, mean[0], precision[0], 0.05, 0.05, 3, 30)
+    stencil = np.zeros((7, 3))
+    for axis, step in enumerate((0.05, 0.05, 0.05)):
+        stencil[1 + 2 * axis, axis], stencil[2 + 2 * axis, axis] = -step, step
+    scores = []
+    for off in stencil:
+        p = best + off
+        ll, _ = twin_loglik(grid, hits, *p, ranges, angles, 3.0, 1, 0.075)
+        d = p - mean[0]
+        scores.append(ll - 0.5 * d @ precision[0] @ d + lognorm[0])
+    scores = np.array(scores)
+    weights = np.exp(scores - scores.max())
+    mu = weights @ stencil / weights.sum()
+    cov = (weights[:, None, None] * np.einsum("ki,kj->kij", stencil - mu, stencil - mu)).sum(0) / weights.sum()
+    cov += np.diag([1e-6, 1e-6, 1e-7])
+    draw = mu + np.linalg.cholesky(cov) @ normals[0]
+    assert flags[0]
+    np.testing.assert_allclose(new[0], best + draw, atol=1e-9)
+    eta = scores.max() + math.log(weights.sum()) + math.log(0.05**3)
+    assert inc[0] == pytest.approx(0.5 * eta, rel=1e-9)
+
+
+@given(st.integers(0, 2**31), st.integers(1, 40))
+def test_systematic_resampling_matches_twin(seed, m):
+    rng = np.random.default_rng(seed)
+    w = rng.random(m) ** 3
+    w /= w.sum()
+    got = systematic_resample(w, np.random.default_rng(seed))
+    u = np.random.default_rng(seed).random()
+    cumulative, i, want = np.cumsum(w), 0, []
+    for k in range(m):
+        pointer = (u + k) / m
+        while i < m - 1 and cumulative[i] <= pointer:
+            i += 1
+        want.append(i)
+    np.testing.assert_array_equal(got, want)
+    counts = np.bincount(got, minlength=m)
+    assert np.all(counts >= np.floor(m * w) - 1e-9) and np.all(counts <= np.ceil(m * w) + 1e-9)
+
+
+@given(st.integers(0, 2**31), st.integers(0, 50))
+def test_code_histogram_matches_bincount(seed, n):
+    codes = np.random.default_rng(seed).integers(-128, 128, n).astype(np.int8)
+    np.testing.assert_array_equal(certainty_kernels.code_histogram(codes, 256, 128),
+                                  np.bincount(codes.astype(np.int64) + 128, minlength=256))
