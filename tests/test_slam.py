@@ -77,7 +77,9 @@ def test_metrics_are_those_of_the_certainty_functions(loop_runs):
     _, _, slam, rows, _, _ = loop_runs[0]
     last = rows[-1]
     w, lut = slam.weights, slam.cell_codes.probability
-    assert last.emmi == certainty.emmi(slam.maps.codes, w, lut=lut)
+    histograms = [np.bincount(c.ravel().astype(np.int64) + 128, minlength=256) for c in slam.maps.codes]
+    np.testing.assert_array_equal(slam.maps.counts, histograms)
+    assert last.emmi == pytest.approx(certainty.emmi(slam.maps.codes, w, lut=lut), abs=1e-12)
     assert last.emmi == pytest.approx(certainty.mean_information(slam.expected_map()), abs=1e-12)
     assert last.joint_entropy == pytest.approx(
         certainty.joint_entropy(slam.paths, slam.maps.codes.astype(np.float64) * slam.cell_codes.step, w,
@@ -153,7 +155,9 @@ def test_resampling_copies_grids_by_index():
     for i in range(3):
         maps.codes[i] = i
         maps.hits[i] = 10 * i
+        maps.counts[i] = i
     maps.resample(np.array([2, 2, 0]))
+    assert [int(maps.counts[i, 0]) for i in range(3)] == [2, 2, 0]
     assert [int(maps.codes[i, 0, 0]) for i in range(3)] == [2, 2, 0]
     assert [int(maps.hits[i, 1, 1, 0]) for i in range(3)] == [20, 20, 0]
     maps.codes[0, 0, 0] = 5  # copies are independent
@@ -163,7 +167,9 @@ def test_resampling_copies_grids_by_index():
 def test_grids_grow_in_chunks_and_keep_cells_aligned():
     maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 10, 10), 2, CellCodes.from_config(RBPFConfig()))
     maps.codes[1, 3, 4] = 7
+    maps.counts[1, 128], maps.counts[1, 7 + 128] = 99, 1
     assert maps.grow_to_contain(-0.5, 0.2, 1.5, 0.8, chunk=1.0)
+    assert maps.counts[1, 128] == 299 and maps.counts[1].sum() == 300
     g = maps.geometry
     assert (g.origin_x, g.origin_y) == (-1.0, 0.0) and g.cols == 30 and g.rows == 10
     row, col = g.cell_of(0.45, 0.35)

@@ -113,9 +113,11 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     got = codes.copy()
     hits = np.zeros((m, h, w, 3), dtype=np.int8)
     stamp = np.zeros((h, w), dtype=np.int64)
-    serial = K.insert_scans(got, hits, poses, *rays, 17, -8, 100, 0.0, 0.0, RES, stamp, 0)
+    counts = np.array([np.bincount(c.ravel().astype(np.int64) + 128, minlength=256) for c in codes])
+    serial = K.insert_scans(got, hits, counts, poses, *rays, 17, -8, 100, 0.0, 0.0, RES, stamp, 0)
     assert serial == 2 * m
     np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(counts, [np.bincount(c.ravel() + 128, minlength=256) for c in expected])
 
 
 def test_hit_means_follow_the_end_points():
@@ -128,7 +130,9 @@ def test_hit_means_follow_the_end_points():
     for ex, ey in ends:
         r = math.hypot(ex - 0.05, ey - 0.05)
         a = math.atan2(ey - 0.05, ex - 0.05)
-        serial = K.insert_scans(codes, hits, np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
+        counts = np.zeros((1, 256), dtype=np.int64)
+        counts[0, 128] = 100
+        serial = K.insert_scans(codes, hits, counts, np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
                                 np.array([K.RAY_HIT]), 17, -8, 100, 0.0, 0.0, RES, stamp, serial)
     stored = hits[0, 5, 5]
     assert stored[2] == 3

@@ -4,15 +4,17 @@ Pure functions of NumPy arrays. Information is in bits (as the paper); entropies
 poses, paths and the joint entropy are in nats (differential entropies).
 """
 
-from .expected_map import emmi, expected_map, weighted_map_entropy
+from .expected_map import emmi, expected_map, joint_entropy_of_parts, weighted_map_entropy
 from .information import (
     DEFAULT_OBSERVED_TOL,
     as_probability,
     cell_entropy,
     cell_information,
     map_entropy,
+    map_entropy_of_code_counts,
     map_information,
     mean_information,
+    mean_information_of_code_counts,
     observed_cells,
 )
 from .pose import DEFAULT_DET_FLOOR, joint_entropy, path_entropy, pose_entropy
@@ -28,9 +30,12 @@ __all__ = [
     "emmi",
     "expected_map",
     "joint_entropy",
+    "joint_entropy_of_parts",
     "map_entropy",
+    "map_entropy_of_code_counts",
     "map_information",
     "mean_information",
+    "mean_information_of_code_counts",
     "normalize_weights",
     "observed_cells",
     "path_entropy",

@@ -6,6 +6,7 @@ import numpy as np
 
 from .grids import ParticleGrids
 from .information import DEFAULT_OBSERVED_TOL, information_and_observed
+from .weights import normalize_weights
 
 
 def expected_map(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False) -> np.ndarray:
@@ -39,3 +40,12 @@ def weighted_map_entropy(grids, weights, *, logodds: bool = False, lut=None, log
     """``sum_i w_i H(m_i)`` in bits: the map term of the joint entropy, eq. (12), with eq. (8)."""
     pg = ParticleGrids.from_arrays(grids, weights, logodds=logodds, lut=lut, log_weights=log_weights)
     return float(np.dot(pg.weights, pg.entropies_bits()))
+
+
+def joint_entropy_of_parts(path_entropy_nats: float, map_entropies_bits, weights, *, log_weights: bool = False) -> float:
+    """Eq. (12) from its parts: the path entropy (nats) plus ``sum_i w_i H(m_i)`` (given in bits), in nats."""
+    w = normalize_weights(weights, log=log_weights)
+    h = np.asarray(map_entropies_bits, dtype=np.float64)
+    if h.shape != w.shape:
+        raise ValueError(f"{h.size} map entropies but {w.size} weights")
+    return float(path_entropy_nats + np.dot(w, h) * np.log(2.0))

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _kernels
-from .information import cell_entropy
+from .information import cell_entropy, map_entropy_of_code_counts
 from .weights import normalize_weights
 
 _CODE_DTYPES = (np.int8, np.uint8, np.int16, np.uint16)
@@ -83,9 +83,8 @@ class ParticleGrids:
     def entropies_bits(self) -> np.ndarray:
         """H(m_i), eq. (8), of each particle's map, in bits."""
         if self.lut is not None:
-            entropy_lut = cell_entropy(self.lut)
-            return np.array([_kernels.code_histogram(row, self.lut.size, self.offset) @ entropy_lut
-                             for row in self.flat])
+            return map_entropy_of_code_counts(
+                [_kernels.code_histogram(row, self.lut.size, self.offset) for row in self.flat], self.lut)
         if self.logodds:
             return np.array([_kernels.entropy_sum(logistic(row)) for row in self.flat])
         return np.array([_kernels.entropy_sum(row) for row in self.flat])

@@ -114,9 +114,24 @@ def mean_information(p, *, logodds: bool = False, lut=None, observed_tol: float 
         if codes.dtype.kind not in "iu" or table.shape != (np.iinfo(codes.dtype).max - np.iinfo(codes.dtype).min + 1,):
             raise ValueError(f"a lut for {codes.dtype} codes needs one probability per code value")
         counts = _kernels.code_histogram(codes, table.size, -int(np.iinfo(codes.dtype).min))
-        observed = (counts > 0) & observed_cells(table, observed_tol)
-        n_obs = int(counts[observed].sum())
-        return float(counts[observed] @ cell_information(table[observed])) / n_obs if n_obs else 0.0
+        return mean_information_of_code_counts(counts, table, observed_tol)
     prob = np.ascontiguousarray(as_probability(p, logodds=logodds)).ravel()
     info, n_obs = information_and_observed(prob, observed_tol)
     return info / n_obs if n_obs else 0.0
+
+
+def mean_information_of_code_counts(counts, lut, observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """Eq. (10) of an integer-coded map given only how many cells hold each code.
+
+    ``counts[k]`` cells hold the code of probability ``lut[k]``; a map whose histogram
+    is kept up to date as cells change needs no pass over its cells.
+    """
+    counts, table = np.asarray(counts), np.asarray(lut, dtype=np.float64)
+    observed = (counts > 0) & observed_cells(table, observed_tol)
+    n_obs = int(counts[observed].sum())
+    return float(counts[observed] @ cell_information(table[observed])) / n_obs if n_obs else 0.0
+
+
+def map_entropy_of_code_counts(counts, lut) -> np.ndarray:
+    """Eq. (8), bits, of integer-coded maps given their code histograms (..., K)."""
+    return np.asarray(counts) @ cell_entropy(np.asarray(lut, dtype=np.float64))

@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from ..motion import wrap_angle
-from .expected_map import weighted_map_entropy
+from .expected_map import joint_entropy_of_parts
+from .grids import ParticleGrids
 from .weights import normalize_weights
 
 #: Floor on det(Sigma) (m^2 m^2 rad^2) so that a collapsed particle set (one particle,
@@ -84,6 +85,5 @@ def joint_entropy(paths, grids, weights, *, logodds: bool = False, lut=None, log
     certain (the paper's Fig. 5).
     """
     w = normalize_weights(weights, log=log_weights)
-    h_path = path_entropy(paths, w, det_floor=det_floor)
-    h_maps = weighted_map_entropy(grids, w, logodds=logodds, lut=lut) * math.log(2.0)
-    return h_path + h_maps
+    maps = ParticleGrids.from_arrays(grids, w, logodds=logodds, lut=lut)
+    return joint_entropy_of_parts(path_entropy(paths, w, det_floor=det_floor), maps.entropies_bits(), w)

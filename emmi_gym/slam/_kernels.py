@@ -23,13 +23,17 @@ _OFFSET_SCALE = 254.0
 
 
 @nb.njit(cache=True, inline="always")
-def _add_clamped(grid, row, col, increment, clamp):
-    v = np.int16(grid[row, col]) + increment
+def _add_clamped(grid, counts, row, col, increment, clamp):
+    """grid[row, col] += increment within +-clamp, keeping the grid's code histogram ``counts`` current."""
+    old = np.int16(grid[row, col])
+    v = old + increment
     if v > clamp:
         v = clamp
     elif v < -clamp:
         v = -clamp
     grid[row, col] = v
+    counts[old + 128] -= 1
+    counts[v + 128] += 1
 
 
 #: Kinds of insertion rays: a beam's hit (end cell occupied), a ray that frees its whole
@@ -98,7 +102,7 @@ def _accumulate_hit(cell, gx, gy, col, row):
 
 
 @nb.njit(cache=True)
-def insert_scans(codes, hits, poses, ray_angles, ray_lengths, ray_kinds, inc_occupied, inc_free, clamp,
+def insert_scans(codes, hits, counts, poses, ray_angles, ray_lengths, ray_kinds, inc_occupied, inc_free, clamp,
                  origin_x, origin_y, resolution, stamp, serial):
     """Insert one scan, given as rays (see :func:`scan_rays`), into each particle's grid at its pose.
 
@@ -107,7 +111,9 @@ def insert_scans(codes, hits, poses, ray_angles, ray_lengths, ray_kinds, inc_occ
     ``inc_free`` if some ray crosses it before its end (exact cell traversal, Amanatides
     & Woo; a RAY_FREE ray frees its end cell too). ``stamp`` (H, W) int64
     remembers which cells this scan already touched; ``serial`` grows by 2 per particle
-    and is returned. Hit end points also update their cell's mean hit position.
+    and is returned. Hit end points also update their cell's mean hit position, and
+    ``counts`` (M, 256), how many cells of each grid hold each code (index code + 128),
+    follows every change.
     """
     m, h, w = codes.shape
     n_rays = ray_angles.size
@@ -130,7 +136,7 @@ def insert_scans(codes, hits, poses, ray_angles, ray_lengths, ray_kinds, inc_occ
             _accumulate_hit(hits[i, row, col], gx, gy, col, row)
             if stamp[row, col] != hit_id:
                 stamp[row, col] = hit_id
-                _add_clamped(grid, row, col, inc_occupied, clamp)
+                _add_clamped(grid, counts[i], row, col, inc_occupied, clamp)
         for b in range(n_rays):
             length = ray_lengths[b]
             if length <= 0.0:
@@ -156,7 +162,7 @@ def insert_scans(codes, hits, poses, ray_angles, ray_lengths, ray_kinds, inc_occ
                     break
                 if stamp[cy, cx] < hit_id:
                     stamp[cy, cx] = free_id
-                    _add_clamped(grid, cy, cx, inc_free, clamp)
+                    _add_clamped(grid, counts[i], cy, cx, inc_free, clamp)
                 if t_x < t_y:
                     cx += step_x
                     t_x += t_dx

@@ -34,11 +34,11 @@ class RBPFConfig:
     # scan matching and likelihood (GMapping's lstep/astep, iterations, kernelSize, lsigma, lskip)
     match_linear_step: float = 0.05
     match_angular_step: float = 0.05
-    match_refinements: int = 4
+    match_refinements: int = 3
     match_max_iterations: int = 60
     match_window: int = 1                 # cells searched around a beam's end point
     match_beam_skip: int = 1              # use every n-th beam for the proposal and the weights
-    match_climb_skip: int = 3             # ... and every n-th of those while hill-climbing (coarse to fine)
+    match_climb_skip: int = 6             # ... and every n-th of those while hill-climbing (coarse to fine)
     likelihood_sigma: float = 0.075
     min_match_fraction: float = 0.3       # fall back to odometry below this fraction of matched beams
     # weights: an exponent on the likelihood (MRPT's powFactor; GMapping's 1 / (ogain * M))

@@ -251,18 +251,25 @@ class RBPF:
         self.maps.grow_to_contain(lo[0], lo[1], hi[0], hi[1], self.grow_chunk)
 
     def _measure(self, timestamp: float, resampled: bool, matched: float, phases: dict) -> UpdateMetrics:
-        """Every certainty measure of the particle set, through :mod:`emmi_gym.certainty`."""
+        """Every certainty measure of the particle set, through :mod:`emmi_gym.certainty`.
+
+        EMMI is computed over the box of cells any scan reached (all grids are unknown,
+        so uninformative, elsewhere); map entropies and the best map's mean information
+        come from the grids' code histograms, which the insertion keeps current.
+        """
         t0 = time.perf_counter()
-        codes, lut = self.maps.codes, self.cell_codes.probability
+        lut, counts = self.cell_codes.probability, self.maps.counts
         w = self.weights
+        path_entropy = certainty.path_entropy(self.paths, w)
         metrics = UpdateMetrics(
             step=self.step, time=timestamp,
-            emmi=certainty.emmi(codes, w, lut=lut),
-            mean_information_best=certainty.mean_information(codes[self.best], lut=lut),
+            emmi=certainty.emmi(self.maps.touched_codes(), w, lut=lut),
+            mean_information_best=certainty.mean_information_of_code_counts(counts[self.best], lut),
             pose_entropy=certainty.pose_entropy(self.poses, w),
             weight_entropy=certainty.weight_entropy(w),
-            path_entropy=certainty.path_entropy(self.paths, w),
-            joint_entropy=certainty.joint_entropy(self.paths, codes, w, lut=lut),
+            path_entropy=path_entropy,
+            joint_entropy=certainty.joint_entropy_of_parts(
+                path_entropy, certainty.map_entropy_of_code_counts(counts, lut), w),
             neff=certainty.effective_sample_size(w),
             resampled=bool(resampled), matched_fraction=matched, update_ms=0.0)
         phases["metrics"] = time.perf_counter() - t0
