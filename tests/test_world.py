@@ -354,3 +354,12 @@ def test_ground_truth_at_any_resolution():
     world = load_world("loop_corridor")
     areas = [rasterise(world, res).reachable.sum() * res**2 for res in (0.2, 0.1, 0.05)]
     assert max(areas) / min(areas) < 1.2
+
+
+def test_resting_against_a_wall_is_not_a_collision():
+    sim = Simulator(parse_world(BOX))
+    sim.reset(np.random.default_rng(0))
+    for _ in range(60):
+        sim.step(0.6, 0.0)  # drive into the wall at x = 1.9 and keep pushing
+    assert sim.step(0.6, 0.0).collided
+    assert not any(sim.step(0.0, 0.0).collided for _ in range(5))  # then stand still against it

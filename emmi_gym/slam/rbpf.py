@@ -111,6 +111,13 @@ class RBPF:
     def geometry(self) -> GridGeometry:
         return self.maps.geometry
 
+    def pose_estimate(self, odometry_pose) -> np.ndarray:
+        """The best particle's pose moved on by the odometry since the last update (for control in between)."""
+        base = self.poses[self.best]
+        if self._last_odometry is None:
+            return base.copy()
+        return compose_motion(base, *relative_motion(self._last_odometry, np.asarray(odometry_pose)))
+
     def expected_map(self) -> np.ndarray:
         """EM, eq. (6): probability grid (H, W)."""
         return certainty.expected_map(self.maps.codes, self.log_weights, lut=self.cell_codes.probability,

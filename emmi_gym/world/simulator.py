@@ -119,12 +119,17 @@ class Simulator:
         collided = False
         for _ in range(cfg.physics_substeps):
             heading = self.body.angle
+            # re-anchor the control body on the robot: the pivot then acts on the commanded
+            # velocity only, not on how far the control body got ahead into a wall
+            self.control_body.position = self.body.position
             self.control_body.velocity = (v * math.cos(heading), v * math.sin(heading))
             self.control_body.angular_velocity = omega
             self.space.step(dt)
-            contacts: list = []
-            self.body.each_arbiter(contacts.append)
-            collided |= bool(contacts)
+            normals: list = []  # from the robot into each wall it touches
+            self.body.each_arbiter(lambda arbiter: normals.append(arbiter.contact_point_set.normal))
+            command = (v * math.cos(heading), v * math.sin(heading))
+            # a collision is driving into a wall, not resting beside it or driving away
+            collided |= any(n.x * command[0] + n.y * command[1] > 1e-6 for n in normals)
         after = self.true_pose
         reading = noisy_motion(*relative_motion(before, after), self.odometry_noise, self.rng)
         self.odometry_pose = compose_motion(self.odometry_pose, *reading)

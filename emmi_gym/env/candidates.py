@@ -1,0 +1,97 @@
+"""Where to go next: frontier targets (explore) and revisit targets that would close a loop.
+
+Slots are deterministic: the first ``n_frontiers`` hold frontier targets, nearest
+(by travel cost) first; the next ``n_revisits`` hold revisit targets, strongest loop
+first. Empty slots are masked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from .planner import FREE_P, OCCUPIED_P, CostMap
+
+MIN_FRONTIER_CELLS = 4        # frontiers shorter than this (cells) are noise
+MIN_TRAVEL = 1.0              # m: a target nearer than this is where the robot already is
+LOOP_MIN_PATH = 12.0          # m of path between a past pose and the robot for a revisit to close a loop
+LOOP_RATIO = 1.5              # ... and at least this ratio of path length to travel cost
+REVISIT_SPACING = 3.0         # m between two revisit targets
+
+
+@dataclass(frozen=True)
+class Target:
+    """A candidate goal (x, y) in the map frame, of kind 'frontier' or 'revisit'."""
+
+    kind: str
+    x: float
+    y: float
+    travel_cost: float
+    gain: float  # frontier: its length in cells; revisit: path length / travel cost
+
+
+def frontier_targets(expected_map: np.ndarray, costs: CostMap, observed_tol: float = 0.0224) -> list[Target]:
+    """Clusters of known-free cells next to open unknown space, each represented by its cell nearest its centroid.
+
+    Unknown cells within two cells of an obstacle do not count: they are the never-seen
+    inside of a wall, not unexplored space.
+    """
+    geometry = costs.geometry
+    free = expected_map < FREE_P
+    near_obstacle = ndimage.binary_dilation(expected_map > OCCUPIED_P, iterations=2)
+    unknown = (np.abs(expected_map - 0.5) < observed_tol) & ~near_obstacle
+    frontier = free & ndimage.binary_dilation(unknown, structure=ndimage.generate_binary_structure(2, 1))
+    labels, n = ndimage.label(frontier, structure=np.ones((3, 3)))
+    targets = []
+    for index, cluster in enumerate(ndimage.find_objects(labels), start=1):
+        rows, cols = np.nonzero(labels[cluster] == index)
+        if rows.size < MIN_FRONTIER_CELLS:
+            continue
+        rows, cols = rows + cluster[0].start, cols + cluster[1].start
+        k = int(np.argmin((rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2))
+        x, y = geometry.centre_of(rows[k], cols[k])
+        cost = costs.cost_to(float(x), float(y))
+        if MIN_TRAVEL <= cost < np.inf:
+            targets.append(Target("frontier", float(x), float(y), cost, float(rows.size)))
+    targets.sort(key=lambda t: (t.travel_cost, t.x, t.y))
+    return targets
+
+
+def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
+    """Past poses of the estimated path that would close a loop if revisited.
+
+    A pose qualifies when at least ``LOOP_MIN_PATH`` metres of path lie between it and
+    the robot, travelling there costs at most 1/``LOOP_RATIO`` of that, and the recent
+    path (those last metres) never came within ``REVISIT_SPACING`` of it: an area just
+    revisited closes nothing more.
+    """
+    if len(path) < 2:
+        return []
+    steps = np.hypot(*np.diff(path[:, :2], axis=0).T)
+    along = np.concatenate([[0.0], np.cumsum(steps)])
+    behind = along[-1] - along  # path length from each past pose to the robot
+    recent = path[behind < LOOP_MIN_PATH, :2]
+    candidates = []
+    for k in np.flatnonzero(behind >= LOOP_MIN_PATH):
+        if np.min(np.hypot(*(recent - path[k, :2]).T)) < REVISIT_SPACING:
+            continue
+        cost = costs.cost_to(path[k, 0], path[k, 1])
+        if MIN_TRAVEL <= cost < np.inf and behind[k] >= LOOP_RATIO * cost:
+            candidates.append(Target("revisit", float(path[k, 0]), float(path[k, 1]), cost, behind[k] / max(cost, 0.5)))
+    candidates.sort(key=lambda t: (-t.gain, t.travel_cost))
+    chosen: list[Target] = []
+    for t in candidates:
+        if all(np.hypot(t.x - c.x, t.y - c.y) >= REVISIT_SPACING for c in chosen):
+            chosen.append(t)
+    return chosen
+
+
+def candidate_slots(expected_map: np.ndarray, path: np.ndarray, costs: CostMap, n_frontiers: int,
+                    n_revisits: int) -> list[Target | None]:
+    """The action slots: frontiers then revisits, None where a slot is empty."""
+    frontiers = frontier_targets(expected_map, costs)[:n_frontiers]
+    revisits = revisit_targets(path, costs)[:n_revisits]
+    return (frontiers + [None] * (n_frontiers - len(frontiers))
+            + revisits + [None] * (n_revisits - len(revisits)))

@@ -1,0 +1,290 @@
+"""The Gymnasium environment: act, let the RBPF map, observe the expected map, earn the change in EMMI."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .. import certainty
+from ..control import WaypointFollower
+from ..evaluation import absolute_trajectory_error, map_accuracy
+from ..grid import GridGeometry
+from ..slam import RBPF, RBPFConfig
+from ..world import (GeneratorConfig, LaserConfig, OdometryNoise, RobotConfig, Simulator, generate_world,
+                     load_world, rasterise)
+from . import observation as obs
+from .candidates import Target, candidate_slots
+from .config import EnvConfig, make_config
+from .planner import travel_costs
+from .rendering import HumanWindow, render_frame
+from .rewards import Snapshot, reward_components, total_reward
+
+#: Discrete velocity actions: (v, omega) as fractions of the robot's limits.
+DISCRETE_VELOCITIES = ((0.0, 0.0), (1.0, 0.0), (0.3, 1.0), (0.3, -1.0), (-0.5, 0.0))
+#: Simulator steps (15 s) an invalid (masked) waypoint action stands still for: doing nothing
+#: through the default 60 decisions costs 9000 steps of time, about what it costs in velocity mode.
+STAY_STEPS = 150
+#: Consecutive colliding steps after which a macro-action counts as blocked.
+BLOCKED_STEPS = 15
+
+
+def _dataclass_from(cls, options: dict, name: str):
+    valid = [f.name for f in fields(cls)]
+    unknown = sorted(set(options) - set(valid))
+    if unknown:
+        raise ValueError(f"unknown {name} option(s) {unknown}; valid ones are {valid}")
+    return cls(**options)
+
+
+class EmmiEnv(gym.Env):
+    """Active SLAM: a robot in a pymunk world maps it with an RBPF; observation = the expected map.
+
+    See :class:`~emmi_gym.env.config.EnvConfig` for every option. In waypoint mode an
+    action picks one of ``n_frontiers + n_revisits`` candidate targets (use
+    :meth:`action_masks` with sb3-contrib's MaskablePPO); the robot plans a path on
+    the expected map and follows it with its estimated pose until it arrives, is
+    blocked, or ``macro_timeout`` simulator steps pass. An invalid (empty, masked)
+    slot makes it stand still for 150 simulator steps (15 s), which costs time (the masks keep
+    slot 0 valid for that when no target is left); so does a target it cannot set off for. In velocity
+    mode an action is (v, omega) in [-1, 1] scaled to the robot's limits (or one of
+    five discrete commands: stop, forward, left, right, back), one simulator step.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+
+    def __init__(self, render_mode: str | None = None, **options):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r} is not valid; choose one of "
+                             f"{self.metadata['render_modes']} or None")
+        self.config: EnvConfig = make_config(**options)
+        cfg = self.config
+        self.render_mode = render_mode
+        self.robot_config = RobotConfig()
+        self.metadata = dict(self.metadata, render_fps=int(round(1.0 / self.robot_config.control_period)))
+        self.laser_config = _dataclass_from(LaserConfig, cfg.laser, "laser")
+        self.odometry_config = _dataclass_from(OdometryNoise, cfg.odometry_noise, "odometry_noise")
+        self.slam_config = _dataclass_from(RBPFConfig, dict(cfg.slam, particles=cfg.particles,
+                                                            resolution=cfg.resolution), "slam")
+        self.generator_config = _dataclass_from(GeneratorConfig, cfg.generator, "generator")
+        self._fixed_world = load_world(cfg.world) if cfg.world is not None else None
+        if self._fixed_world is not None and cfg.start_at == "decision" and "to_decision" not in self._fixed_world.routes:
+            raise ValueError(f"start_at='decision' needs a 'to_decision' route; world '{self._fixed_world.name}' "
+                             f"has {sorted(self._fixed_world.routes)}: use start_at='start'")
+        if cfg.action_mode == "waypoint":
+            self.action_space = spaces.Discrete(cfg.n_actions)
+        elif cfg.velocity_actions == "continuous":
+            self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        else:
+            self.action_space = spaces.Discrete(len(DISCRETE_VELOCITIES))
+        self.observation_space = obs.observation_space(cfg.obs_size, cfg.observation)
+        self.world = None
+        self.sim: Simulator | None = None
+        self.slam: RBPF | None = None
+        self._window: HumanWindow | None = None
+
+    # ------------------------------------------------------------------ episode
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        start_at = options.pop("start_at", self.config.start_at)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: ['start_at']")
+        rng = self.np_random
+        world = self._fixed_world or generate_world(rng, self.generator_config)
+        if world is not self.world:
+            self._set_world(world)
+        self.sim.reset(rng)
+        self.slam = RBPF(self.slam_config, max_range=self.laser_config.max_range, geometry=self.geometry)
+        self.slam.reset(self.sim.odometry_pose, rng)
+        self.sim_steps = self.collisions = self.decisions = 0
+        self._true_at_updates: list[np.ndarray] = []
+        self._true_path = [self.sim.true_pose]
+        self._metrics = None
+        self._feed(self.sim.odometry_pose, self.sim.true_pose)
+        if start_at == "decision":
+            if "to_decision" not in world.routes:
+                raise ValueError(f"start_at='decision' needs a 'to_decision' route in world '{world.name}'")
+            follower = WaypointFollower(world.route("to_decision"), self.robot_config.max_speed,
+                                        self.robot_config.max_turn_rate)
+            while not follower.done:
+                v, omega = follower.command(self.sim.true_pose)
+                if not follower.done:
+                    self._sim_step(v, omega)
+        self.sim_steps = self.collisions = 0
+        self._refresh()
+        self._snapshot = self._take_snapshot()
+        return self._observation(), self._info({k: 0.0 for k in ("emmi", "pose_entropy", "joint_entropy",
+                                                                  "coverage", "time", "collision")})
+
+    def _set_world(self, world) -> None:
+        self.world = world
+        self.sim = Simulator(world, self.robot_config, self.laser_config, self.odometry_config)
+        self.geometry = GridGeometry.covering(*world.bounds, self.config.resolution)
+        self.truth = rasterise(world, self.config.resolution, self.geometry)
+        self._reachable = self.truth.reachable
+        self._n_reachable = max(1, int(self._reachable.sum()))
+
+    def step(self, action):
+        if self.slam is None:
+            raise RuntimeError("call reset() before step()")
+        steps0, collisions0 = self.sim_steps, self.collisions
+        if self.config.action_mode == "waypoint":
+            self._macro_step(int(action))
+            self.decisions += 1
+        else:
+            v, omega = self._velocity(action)
+            self._sim_step(v, omega)
+        self._refresh()
+        after = self._take_snapshot()
+        components = reward_components(self._snapshot, after, self.sim_steps - steps0,
+                                       self.collisions - collisions0, self.config)
+        self._snapshot = after
+        reward = total_reward(components, self.config)
+        terminated = after.coverage >= self.config.coverage_target
+        truncated = (self.sim_steps >= self.config.max_sim_steps or
+                     (self.config.action_mode == "waypoint" and self.decisions >= self.config.max_decisions))
+        observation, info = self._observation(), self._info(components)
+        info["sim_steps_this_step"] = self.sim_steps - steps0
+        if self.render_mode == "human":
+            self.render()
+        return observation, reward, bool(terminated), bool(truncated and not terminated), info
+
+    def _velocity(self, action) -> tuple[float, float]:
+        limits = (self.robot_config.max_speed, self.robot_config.max_turn_rate)
+        if self.config.velocity_actions == "discrete":
+            fv, fw = DISCRETE_VELOCITIES[int(action)]
+        else:
+            fv, fw = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+        return float(fv) * limits[0], float(fw) * limits[1]
+
+    def _macro_step(self, action: int) -> None:
+        if not 0 <= action < self.config.n_actions:
+            raise ValueError(f"action {action} is outside Discrete({self.config.n_actions})")
+        target: Target | None = self._slots[action]
+        moved = target is not None and self._follow(target)
+        if not moved:  # an empty slot, or a target the robot cannot leave for: stand still
+            for _ in range(STAY_STEPS):
+                self._sim_step(0.0, 0.0)
+
+    def _follow(self, target: Target) -> bool:
+        """Plan to ``target`` on the expected map and follow the path; False if not a single step was taken."""
+        waypoints = self._costs.path_to(target.x, target.y)
+        follower = WaypointFollower(waypoints, self.robot_config.max_speed, self.robot_config.max_turn_rate,
+                                    tolerance=0.3)
+        colliding = taken = 0
+        for _ in range(self.config.macro_timeout):
+            v, omega = follower.command(self.slam.pose_estimate(self.sim.odometry_pose))
+            if follower.done or self.sim_steps >= self.config.max_sim_steps:
+                break
+            collided = self._sim_step(v, omega)
+            taken += 1
+            colliding = colliding + 1 if collided else 0
+            if colliding >= BLOCKED_STEPS:
+                break
+        return taken > 0
+
+    def _sim_step(self, v: float, omega: float) -> bool:
+        result = self.sim.step(v, omega)
+        self.sim_steps += 1
+        self.collisions += int(result.collided)
+        self._true_path.append(result.true_pose)
+        self._feed(result.odometry_pose, result.true_pose)
+        return result.collided
+
+    def _feed(self, odometry_pose, true_pose) -> None:
+        metrics = self.slam.process(odometry_pose, self.sim.scan(), self._angles, self.sim.time)
+        if metrics is not None:
+            self._metrics = metrics
+            self._true_at_updates.append(true_pose)
+            self._stale = True
+
+    @property
+    def _angles(self) -> np.ndarray:
+        return self.laser_config.angles
+
+    # ------------------------------------------------------------------ derived state (after filter updates)
+
+    def _refresh(self) -> None:
+        """Recompute what depends on the expected map, only if the filter updated since last time."""
+        if not getattr(self, "_stale", True) and hasattr(self, "_expected"):
+            return
+        self._stale = False
+        self._expected = self.slam.expected_map()
+        known_free = certainty.observed_cells(self._expected) & (self._expected < 0.5)
+        self._coverage = float(np.count_nonzero(known_free & self._reachable)) / self._n_reachable
+        self._map_accuracy = map_accuracy(self._expected, self.truth.grid)
+        self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
+                                              align=False)
+        if self.config.action_mode == "waypoint":
+            pose = self.slam.pose_estimate(self.sim.odometry_pose)
+            self._costs = travel_costs(self._expected, self.geometry, pose[:2], self.robot_config.radius)
+            self._slots = candidate_slots(self._expected, self.slam.paths[self.slam.best], self._costs,
+                                          self.config.n_frontiers, self.config.n_revisits)
+
+    def _take_snapshot(self) -> Snapshot:
+        m = self._metrics
+        return Snapshot(m.emmi, m.pose_entropy, m.joint_entropy, self._coverage)
+
+    def action_masks(self) -> np.ndarray:
+        """Which actions are valid now (for sb3-contrib's MaskablePPO): the non-empty target slots.
+
+        Never all False: with no target at all, slot 0 (standing still) stays valid.
+        """
+        if self.config.action_mode != "waypoint":
+            return np.ones(getattr(self.action_space, "n", 1), dtype=bool)
+        mask = np.array([slot is not None for slot in self._slots], dtype=bool)
+        if not mask.any():
+            mask[0] = True
+        return mask
+
+    @property
+    def targets(self) -> list[Target | None]:
+        """The candidate target of each action slot (None: empty), in the map frame."""
+        return list(self._slots)
+
+    # ------------------------------------------------------------------ observation, info, rendering
+
+    def _observation(self):
+        pose = self.slam.pose_estimate(self.sim.odometry_pose)
+        cfg = self.config
+        window = obs.view_window(self.world.bounds, pose, cfg.obs_size, cfg.egocentric, cfg.egocentric_extent)
+        image = obs.map_image(self._expected, self.geometry, self.slam.paths[self.slam.best], pose, window,
+                              cfg.obs_size)
+        if cfg.observation == "image":
+            return image
+        return {"map": image, "pose": obs.pose_vector(pose, self.world.bounds),
+                "certainty": obs.certainty_vector(self._metrics.emmi, self._metrics.pose_entropy)}
+
+    def _info(self, components: dict) -> dict:
+        m = self._metrics
+        return {
+            "emmi": m.emmi, "mean_information_best": m.mean_information_best, "pose_entropy": m.pose_entropy,
+            "weight_entropy": m.weight_entropy, "path_entropy": m.path_entropy, "joint_entropy": m.joint_entropy,
+            "neff": m.neff, "resampled": m.resampled, "coverage": self._coverage,
+            "map_accuracy": self._map_accuracy, "ate": self._ate, "collisions": self.collisions,
+            "sim_steps": self.sim_steps, "reward_components": dict(components), "world": self.world.name,
+        }
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        frame = render_frame(self.world.bounds, self.truth.grid, self.geometry, self._expected, self.sim.true_pose,
+                             self._true_path, self.slam.poses, self.slam.paths[self.slam.best],
+                             self.robot_config.radius)
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._window is None:
+            self._window = HumanWindow(self.metadata["render_fps"])
+        self._window.show(frame)
+        return None
+
+    def close(self):
+        if self._window is not None:
+            self._window.close()
+            self._window = None

@@ -1,0 +1,83 @@
+"""Observations: the expected map as an image with the estimated pose, for SB3's MultiInputPolicy / CnnPolicy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+
+from ..grid import GridGeometry
+
+UNKNOWN_PIXEL = 127
+PATH_PIXEL = 128
+ROBOT_PIXEL = 255
+POSE_ENTROPY_RANGE = 20.0  # nats: the certainty vector carries pose_entropy / 20, clipped to [-1, 1]
+
+
+def observation_space(obs_size: int, kind: str) -> spaces.Space:
+    image = spaces.Box(0, 255, (2, obs_size, obs_size), dtype=np.uint8)
+    if kind == "image":
+        return image
+    return spaces.Dict({
+        "map": image,
+        "pose": spaces.Box(-1.0, 1.0, (4,), dtype=np.float32),
+        "certainty": spaces.Box(-1.0, 1.0, (2,), dtype=np.float32),
+    })
+
+
+def view_window(bounds, pose, size: int, egocentric: bool, extent: float) -> tuple[float, float, float]:
+    """(x0, y0, metres per pixel) of the square the image shows: the world's bounds, or a crop round the pose."""
+    if egocentric:
+        return pose[0] - extent / 2, pose[1] - extent / 2, extent / size
+    xmin, ymin, xmax, ymax = bounds
+    side = max(xmax - xmin, ymax - ymin)
+    return (xmin + xmax - side) / 2, (ymin + ymax - side) / 2, side / size
+
+
+def map_image(expected_map: np.ndarray, geometry: GridGeometry, path: np.ndarray, pose, window, size: int
+              ) -> np.ndarray:
+    """(2, size, size) uint8: channel 0 the expected map (0 free, 255 occupied, 127 unknown / outside),
+    channel 1 the estimated path (128) and the robot (255, with a pixel ahead for its heading).
+
+    Row 0 is the top of the image (north up), as image tools show it.
+    """
+    x0, y0, mpp = window
+    centres = (np.arange(size) + 0.5) * mpp
+    xs, ys = x0 + centres, y0 + centres[::-1]
+    rows, cols = geometry.cell_of(xs[None, :].repeat(size, 0), ys[:, None].repeat(size, 1))
+    inside = geometry.inside(rows, cols)
+    image = np.full((2, size, size), 0, dtype=np.uint8)
+    image[0] = UNKNOWN_PIXEL
+    values = expected_map[rows[inside], cols[inside]]
+    image[0][inside] = np.clip(np.floor(values * 255.0), 0, 255).astype(np.uint8)
+
+    def pixel(x, y):
+        return (size - 1 - np.floor((np.asarray(y) - y0) / mpp)).astype(int), np.floor((np.asarray(x) - x0) / mpp).astype(int)
+
+    if len(path):
+        pr, pc = pixel(path[:, 0], path[:, 1])
+        ok = (pr >= 0) & (pr < size) & (pc >= 0) & (pc < size)
+        image[1][pr[ok], pc[ok]] = PATH_PIXEL
+    r, c = pixel(pose[0], pose[1])
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if 0 <= r + dr < size and 0 <= c + dc < size:
+                image[1][r + dr, c + dc] = ROBOT_PIXEL
+    hr, hc = pixel(pose[0] + 2.5 * mpp * math.cos(pose[2]), pose[1] + 2.5 * mpp * math.sin(pose[2]))
+    if 0 <= hr < size and 0 <= hc < size:
+        image[1][hr, hc] = ROBOT_PIXEL
+    return image
+
+
+def pose_vector(pose, bounds) -> np.ndarray:
+    """(x, y) scaled to [-1, 1] over the world's bounds, and (cos, sin) of the heading; float32."""
+    xmin, ymin, xmax, ymax = bounds
+    x = 2.0 * (pose[0] - xmin) / (xmax - xmin) - 1.0
+    y = 2.0 * (pose[1] - ymin) / (ymax - ymin) - 1.0
+    return np.clip(np.array([x, y, math.cos(pose[2]), math.sin(pose[2])], dtype=np.float32), -1.0, 1.0)
+
+
+def certainty_vector(emmi: float, pose_entropy: float) -> np.ndarray:
+    """(EMMI in bits/cell, pose entropy / 20 nats) clipped to [-1, 1]; float32."""
+    return np.clip(np.array([emmi, pose_entropy / POSE_ENTROPY_RANGE], dtype=np.float32), -1.0, 1.0)

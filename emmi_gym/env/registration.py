@@ -1,0 +1,22 @@
+"""Registration of the environment ids with Gymnasium (idempotent; runs on ``import emmi_gym``)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+ENTRY_POINT = "emmi_gym.env.emmi_env:EmmiEnv"
+
+#: id (without namespace) -> default options
+ENV_IDS = {
+    "LoopCorridor-v0": dict(world="loop_corridor", start_at="decision", action_mode="waypoint"),
+    "Explore-v0": dict(world=None, start_at="start", action_mode="waypoint"),
+    "ExploreVelocity-v0": dict(world=None, start_at="start", action_mode="velocity"),
+}
+
+
+def register_envs() -> None:
+    """Register ``emmi_gym/<Id>`` and, for ``gym.make("emmi_gym:<Id>")``, the bare ``<Id>``."""
+    for name, kwargs in ENV_IDS.items():
+        for env_id in (f"emmi_gym/{name}", name):
+            if env_id not in gym.registry:
+                gym.register(id=env_id, entry_point=ENTRY_POINT, kwargs=dict(kwargs))

@@ -1,0 +1,97 @@
+"""Environment steps per second for each id at default settings, and where the time goes.
+
+    python scripts/bench_env.py [--seconds 20]
+
+Single process. For each id: reset (seed 0), then act until ``--seconds`` of time
+inside ``step()`` (random valid waypoint actions; random velocities), counting env
+steps and simulator steps; resets (and LoopCorridor's drive to the decision point)
+are not counted. The split times the simulator (physics and odometry), the laser,
+the RBPF update (its metrics phase, approximately, apart), the expected-map products
+(coverage, accuracy, planning and candidates) and the observation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections import defaultdict
+
+import gymnasium as gym
+import numpy as np
+
+import emmi_gym
+from emmi_gym.env import ENV_IDS, EmmiEnv
+from emmi_gym.slam import RBPF
+from emmi_gym.world import Simulator
+
+gym.register_envs(emmi_gym)
+
+
+def timed(cls, name: str, bucket: dict, key: str) -> None:
+    """Accumulate the wall time of every call of ``cls.name`` into ``bucket[key]``."""
+    original = getattr(cls, name)
+
+    def wrapper(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            bucket[key] += time.perf_counter() - t0
+
+    setattr(cls, name, wrapper)
+
+
+SPENT: dict = defaultdict(float)
+timed(Simulator, "step", SPENT, "physics")
+timed(Simulator, "scan", SPENT, "laser")
+timed(RBPF, "process", SPENT, "rbpf")
+timed(EmmiEnv, "_refresh", SPENT, "map products")
+timed(EmmiEnv, "_observation", SPENT, "observation")
+
+
+def bench(env_id: str, seconds: float) -> None:
+    env = gym.make(env_id)
+    core = env.unwrapped
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    steps = sim_steps = 0
+    wall = metrics = 0.0
+    SPENT.clear()
+    while wall < seconds:
+        if core.config.action_mode == "waypoint":
+            action = int(rng.choice(np.flatnonzero(core.action_masks())))
+        else:
+            action = rng.uniform(-1, 1, 2).astype(np.float32)
+        updates = core.slam.step
+        t0 = time.perf_counter()
+        _, _, terminated, truncated, info = env.step(action)
+        wall += time.perf_counter() - t0
+        steps += 1
+        sim_steps += info["sim_steps_this_step"]
+        if core.slam.step > updates:
+            metrics += core._metrics.phase_ms["metrics"] / 1e3  # the last update's; one per step in velocity mode
+        if terminated or truncated:
+            saved = dict(SPENT)
+            env.reset(seed=steps)  # reset time (the preamble) is not counted
+            SPENT.clear()
+            SPENT.update(saved)
+    spent = dict(SPENT)
+    spent["rbpf"] -= metrics
+    spent["rbpf metrics"] = metrics
+    spent["other"] = max(0.0, wall - sum(spent.values()))
+    print(f"{env_id}: {steps / wall:.1f} env steps/s, {sim_steps / wall:.0f} simulator steps/s "
+          f"({steps} env steps, {sim_steps} simulator steps in {wall:.1f} s of step())")
+    print("  time share: " + ", ".join(f"{k} {100 * v / wall:.0f}%" for k, v in spent.items()))
+    env.close()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=20.0)
+    args = parser.parse_args()
+    for name in ENV_IDS:
+        bench(f"emmi_gym/{name}", args.seconds)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,245 @@
+"""The Gymnasium environments: API conformance, seeding, vectorisation, options, behaviour."""
+
+import multiprocessing as mp
+import os
+import pickle
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import emmi_gym
+from emmi_gym.env import ENV_IDS
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+gym.register_envs(emmi_gym)
+IDS = [f"emmi_gym/{name}" for name in ENV_IDS]
+SMALL = dict(particles=5)  # fewer particles: the behaviour under test does not depend on M
+
+
+def frontier_action(env) -> int:
+    """The nearest frontier (slot 0) when there is one, else the first valid slot."""
+    mask = env.unwrapped.action_masks()
+    return int(np.flatnonzero(mask)[0])
+
+
+def assert_same(a, b):
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for key in a:
+            assert_same(a[key], b[key])
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            assert_same(x, y)
+    elif isinstance(a, np.ndarray):
+        np.testing.assert_array_equal(a, b)
+    else:
+        assert a == b or (a != a and b != b)  # NaN equals NaN here
+
+
+# ------------------------------------------------------------------ registration and API
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_check_env_passes_without_warnings(env_id):
+    env = gym.make(env_id, render_mode="rgb_array", **SMALL)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=False)
+    assert [str(w.message) for w in caught] == []
+    env.close()
+
+
+def test_ids_register_idempotently_and_by_module_string():
+    from emmi_gym.env import register_envs
+
+    register_envs()
+    register_envs()
+    assert all(env_id in gym.registry for env_id in IDS)
+    env = gym.make("emmi_gym:LoopCorridor-v0", **SMALL)
+    assert env.unwrapped.config.world == "loop_corridor"
+    env.close()
+
+
+def test_spaces_and_info():
+    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    obs, info = env.reset(seed=1)
+    assert obs["map"].shape == (2, 64, 64) and obs["map"].dtype == np.uint8
+    assert env.observation_space.contains(obs)
+    for key in ("emmi", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy", "joint_entropy",
+                "neff", "resampled", "coverage", "map_accuracy", "ate", "collisions", "sim_steps",
+                "reward_components"):
+        assert key in info
+    obs, reward, terminated, truncated, info = env.step(frontier_action(env))
+    assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage", "time",
+                                              "collision"}
+    expected = info["reward_components"]["emmi"] + info["reward_components"]["time"] + \
+        info["reward_components"]["collision"]
+    assert reward == pytest.approx(expected)
+    assert info["sim_steps_this_step"] > 10
+    image = gym.make("emmi_gym/LoopCorridor-v0", observation="image", obs_size=48, **SMALL)
+    assert image.observation_space.shape == (2, 48, 48)
+
+
+def test_render_rgb_array_and_human():
+    env = gym.make("emmi_gym/ExploreVelocity-v0", render_mode="rgb_array", **SMALL)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
+    assert env.metadata["render_fps"] == 10  # the 0.1 s control period
+    human = gym.make("emmi_gym/ExploreVelocity-v0", render_mode="human", **SMALL)
+    human.reset(seed=0)
+    human.step(human.action_space.sample())
+    human.close()
+
+
+# ------------------------------------------------------------------ seeding, pickling, vectorisation
+
+
+def run(env_id, seed, steps, **options):
+    env = gym.make(env_id, **options)
+    obs, info = env.reset(seed=seed)
+    trace = [(obs, info)]
+    rng = np.random.default_rng(seed)
+    for _ in range(steps):
+        if env.unwrapped.config.action_mode == "waypoint":
+            action = int(rng.choice(np.flatnonzero(env.unwrapped.action_masks())))
+        else:
+            action = rng.uniform(-1, 1, 2).astype(np.float32)
+        obs, reward, terminated, truncated, info = env.step(action)
+        trace.append((obs, reward, terminated, truncated, info))
+        if terminated or truncated:
+            break
+    env.close()
+    return trace
+
+
+def test_same_seed_same_episode():
+    assert_same(run("emmi_gym/ExploreVelocity-v0", 3, 50, **SMALL), run("emmi_gym/ExploreVelocity-v0", 3, 50, **SMALL))
+    assert_same(run("emmi_gym/LoopCorridor-v0", 4, 3, **SMALL), run("emmi_gym/LoopCorridor-v0", 4, 3, **SMALL))
+    other = run("emmi_gym/ExploreVelocity-v0", 5, 2, **SMALL)
+    assert not np.array_equal(other[0][0]["map"], run("emmi_gym/ExploreVelocity-v0", 3, 0, **SMALL)[0][0]["map"])
+
+
+def _trace_in_subprocess(queue):
+    queue.put(pickle.dumps(run("emmi_gym/ExploreVelocity-v0", 3, 20, **SMALL)))
+
+
+def test_same_seed_same_episode_across_processes():
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    process = ctx.Process(target=_trace_in_subprocess, args=(queue,))
+    process.start()
+    remote = pickle.loads(queue.get(timeout=300))
+    process.join(timeout=60)
+    assert_same(remote, run("emmi_gym/ExploreVelocity-v0", 3, 20, **SMALL))
+
+
+def test_pickled_env_continues_identically():
+    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL).unwrapped
+    env.reset(seed=2)
+    clone = pickle.loads(pickle.dumps(env))
+    for _ in range(15):
+        a = env.step(np.array([0.8, 0.3], dtype=np.float32))
+        b = clone.step(np.array([0.8, 0.3], dtype=np.float32))
+        assert_same(a, b)
+
+
+def test_async_vector_env_and_sb3_subproc_spawn():
+    envs = gym.make_vec("emmi_gym/ExploreVelocity-v0", num_envs=2, vectorization_mode="async", **SMALL)
+    obs, _ = envs.reset(seed=0)
+    assert obs["map"].shape == (2, 2, 64, 64)
+    for _ in range(3):
+        obs, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
+    assert rewards.shape == (2,)
+    envs.close()
+
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    # a spawned child has not imported emmi_gym: the "module:Id" form makes gymnasium import it first
+    vec = SubprocVecEnv([lambda: gym.make("emmi_gym:ExploreVelocity-v0", **SMALL)] * 2, start_method="spawn")
+    vec.seed(0)
+    obs = vec.reset()
+    for _ in range(3):
+        obs, rewards, dones, infos = vec.step(np.zeros((2, 2), dtype=np.float32))
+    assert obs["map"].shape == (2, 2, 64, 64)
+    vec.close()
+
+
+# ------------------------------------------------------------------ options
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(colour="red"), r"unknown option\(s\) \['colour'\]; valid options are \[.*'reward'"),
+    (dict(reward="fun"), r"reward='fun' is not valid; choose one of \['emmi', 'pose_entropy', 'joint_entropy', 'coverage'\]"),
+    (dict(action_mode="teleport"), r"choose one of \['waypoint', 'velocity'\]"),
+    (dict(particles=0), "particles must be an integer >= 1"),
+    (dict(laser={"beams": 10}), r"unknown laser option\(s\) \['beams'\]; valid ones are \['fov', 'n_beams'"),
+    (dict(laser={"n_beams": -1}), "laser n_beams must be a positive integer"),
+    (dict(odometry_noise={"rot_from_rot": -1}), "rot_from_rot must be a finite number >= 0"),
+    (dict(world="nowhere"), "unknown world 'nowhere'"),
+    (dict(world="office"), "start_at='decision' needs a 'to_decision' route"),
+    (dict(coverage_target=1.5), "coverage_target must be in"),
+    (dict(slam={"likelihood_exponent": -1}), "RBPF likelihood_exponent must be a positive number"),
+])
+def test_bad_options_raise_a_clear_error(options, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("emmi_gym/LoopCorridor-v0", **options)
+
+
+def test_bad_render_mode_and_reset_option():
+    # gymnasium itself warns first that 'screen' is not in metadata["render_modes"]
+    with pytest.raises(ValueError, match=r"render_mode='screen' is not valid"), pytest.warns(UserWarning, match="screen"):
+        gym.make("emmi_gym/LoopCorridor-v0", render_mode="screen")
+    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL)
+    with pytest.raises(ValueError, match=r"unknown reset option\(s\) \['speed'\]"):
+        env.reset(seed=0, options={"speed": 2})
+
+
+# ------------------------------------------------------------------ behaviour
+
+
+def test_decision_point_offers_the_papers_choice():
+    """At the decision point one slot closes the loop (target A, the start) and one enters the new area (B)."""
+    env = gym.make("emmi_gym/LoopCorridor-v0")
+    env.reset(seed=0)
+    world, targets = env.unwrapped.world, env.unwrapped.targets
+    a, b = world.place("target_a"), world.place("target_b")
+    revisits = [t for t in targets if t is not None and t.kind == "revisit"]
+    frontiers = [t for t in targets if t is not None and t.kind == "frontier"]
+    assert any(np.hypot(t.x - a.x, t.y - a.y) < 2.0 for t in revisits)
+    # the side corridor to the new area opens west of the decision point, between y = 8 and 10
+    assert any(t.x < 2.5 and 7.5 <= t.y <= 10.5 for t in frontiers)
+    mask = env.unwrapped.action_masks()
+    assert mask.tolist() == [t is not None for t in targets]
+
+
+def episode_return(env, policy) -> tuple[float, dict, bool]:
+    total, done, terminated = 0.0, False, False
+    while not done:
+        _, reward, terminated, truncated, info = env.step(policy(env))
+        total += reward
+        done = terminated or truncated
+    return total, info, terminated
+
+
+def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
+    """Under the default (EMMI) reward, exploring to the coverage target earns more than standing
+    still or spinning in place until the step budget runs out (the same budget for all three)."""
+    budget = dict(SMALL, max_sim_steps=6000)
+    explore = gym.make("emmi_gym/LoopCorridor-v0", **budget)
+    explore.reset(seed=0)
+    explore_return, info, terminated = episode_return(explore, frontier_action)
+    assert terminated and info["coverage"] >= 0.9
+    assert info["sim_steps"] < explore.unwrapped.config.max_sim_steps
+
+    returns = {}
+    for name, command in (("still", (0.0, 0.0)), ("spin", (0.0, 1.0))):
+        env = gym.make("emmi_gym/LoopCorridor-v0", action_mode="velocity", **budget)
+        env.reset(seed=0)
+        returns[name], info, terminated = episode_return(env, lambda _: np.array(command, dtype=np.float32))
+        assert not terminated and info["sim_steps"] == env.unwrapped.config.max_sim_steps
+    assert returns["still"] < explore_return and returns["spin"] < explore_return, (returns, explore_return)
