@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import emmi_gym
 from emmi_gym.env import ENV_IDS
+from emmi_gym.policies import FrontierPolicy
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 gym.register_envs(emmi_gym)
@@ -19,10 +20,7 @@ IDS = [f"emmi_gym/{name}" for name in ENV_IDS]
 SMALL = dict(particles=5)  # fewer particles: the behaviour under test does not depend on M
 
 
-def frontier_action(env) -> int:
-    """The nearest frontier (slot 0) when there is one, else the first valid slot."""
-    mask = env.unwrapped.action_masks()
-    return int(np.flatnonzero(mask)[0])
+frontier_action = FrontierPolicy()  # the nearest frontier (slot 0), else the first valid slot
 
 
 def assert_same(a, b):
@@ -71,8 +69,10 @@ def test_spaces_and_info():
     assert env.observation_space.contains(obs)
     for key in ("emmi", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy", "joint_entropy",
                 "neff", "resampled", "coverage", "map_accuracy", "ate", "collisions", "sim_steps",
-                "reward_components"):
+                "reward_components", "rbpf_updates"):
         assert key in info
+    assert len(info["rbpf_updates"]) > 80  # the drive to the decision point: one row per filter update
+    assert info["rbpf_updates"][-1]["emmi"] == info["emmi"]
     obs, reward, terminated, truncated, info = env.step(frontier_action(env))
     assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage", "time",
                                               "collision"}
@@ -80,6 +80,7 @@ def test_spaces_and_info():
         info["reward_components"]["collision"]
     assert reward == pytest.approx(expected)
     assert info["sim_steps_this_step"] > 10
+    assert all(set(row) >= {"step", "emmi", "joint_entropy", "neff"} for row in info["rbpf_updates"])
     image = gym.make("emmi_gym/LoopCorridor-v0", observation="image", obs_size=48, **SMALL)
     assert image.observation_space.shape == (2, 48, 48)
 

@@ -105,6 +105,7 @@ class EmmiEnv(gym.Env):
         self._true_at_updates: list[np.ndarray] = []
         self._true_path = [self.sim.true_pose]
         self._metrics = None
+        self._new_updates: list[dict] = []
         self._feed(self.sim.odometry_pose, self.sim.true_pose)
         if start_at == "decision":
             if "to_decision" not in world.routes:
@@ -201,6 +202,7 @@ class EmmiEnv(gym.Env):
         if metrics is not None:
             self._metrics = metrics
             self._true_at_updates.append(true_pose)
+            self._new_updates.append(metrics.measures())
             self._stale = True
 
     @property
@@ -243,6 +245,11 @@ class EmmiEnv(gym.Env):
         return mask
 
     @property
+    def estimated_pose(self) -> np.ndarray:
+        """The robot's pose as the RBPF believes it now (best particle plus odometry since its update)."""
+        return self.slam.pose_estimate(self.sim.odometry_pose)
+
+    @property
     def targets(self) -> list[Target | None]:
         """The candidate target of each action slot (None: empty), in the map frame."""
         return list(self._slots)
@@ -268,7 +275,13 @@ class EmmiEnv(gym.Env):
             "neff": m.neff, "resampled": m.resampled, "coverage": self._coverage,
             "map_accuracy": self._map_accuracy, "ate": self._ate, "collisions": self.collisions,
             "sim_steps": self.sim_steps, "reward_components": dict(components), "world": self.world.name,
+            "rbpf_updates": self._take_updates(),
         }
+
+    def _take_updates(self) -> list[dict]:
+        """The metrics of every RBPF update since the last step (or since reset began), once."""
+        updates, self._new_updates = self._new_updates, []
+        return updates
 
     def render(self):
         if self.render_mode is None:

@@ -57,8 +57,14 @@ class UpdateMetrics:
     update_ms: float
     phase_ms: dict = field(default_factory=dict)
 
+    def measures(self) -> dict:
+        """What the update measured, without its timings (which differ from run to run)."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("phase_ms", "update_ms")}
+
     def as_row(self) -> dict:
-        row = {k: v for k, v in self.__dict__.items() if k != "phase_ms"}
+        """The measures and the timings, for a CSV row."""
+        row = self.measures()
+        row["update_ms"] = self.update_ms
         row.update({f"{k}_ms": v for k, v in self.phase_ms.items()})
         return row
 
