@@ -212,8 +212,11 @@ def test_decision_point_offers_the_papers_choice():
     revisits = [t for t in targets if t is not None and t.kind == "revisit"]
     frontiers = [t for t in targets if t is not None and t.kind == "frontier"]
     assert any(np.hypot(t.x - a.x, t.y - a.y) < 2.0 for t in revisits)
-    # the side corridor to the new area opens west of the decision point, between y = 8 and 10
-    assert any(t.x < 2.5 and 7.5 <= t.y <= 10.5 for t in frontiers)
+    # the side corridor to the new area opens west of the decision point, between y = 8 and 10,
+    # and leads towards target B
+    pose = env.unwrapped.estimated_pose
+    assert any(t.x < 2.5 and 7.5 <= t.y <= 10.5 and np.hypot(t.x - b.x, t.y - b.y) < np.hypot(pose[0] - b.x, pose[1] - b.y)
+               for t in frontiers)
     mask = env.unwrapped.action_masks()
     assert mask.tolist() == [t is not None for t in targets]
 
@@ -241,6 +244,7 @@ def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
     for name, command in (("still", (0.0, 0.0)), ("spin", (0.0, 1.0))):
         env = gym.make("emmi_gym/LoopCorridor-v0", action_mode="velocity", **budget)
         env.reset(seed=0)
-        returns[name], info, terminated = episode_return(env, lambda _: np.array(command, dtype=np.float32))
+        returns[name], info, terminated = episode_return(
+            env, lambda _, command=command: np.array(command, dtype=np.float32))
         assert not terminated and info["sim_steps"] == env.unwrapped.config.max_sim_steps
     assert returns["still"] < explore_return and returns["spin"] < explore_return, (returns, explore_return)

@@ -39,7 +39,7 @@ def test_accuracy_after_the_loop_closes(loop_runs):
     for dead reckoning) is < 0.5 m and >= 3x better than dead reckoning's; the best map, registered
     by the path's alignment, agrees with the truth on >= 90% of the cells both know (median)."""
     accuracies = []
-    for world, rec, slam, rows, steps, geometry in loop_runs:
+    for world, rec, slam, _rows, steps, geometry in loop_runs:
         truth = rec.true_poses[steps]
         best = slam.paths[slam.best]
         ate = absolute_trajectory_error(best, truth, align=False)

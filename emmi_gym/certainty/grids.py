@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _kernels
-from .information import cell_entropy, map_entropy_of_code_counts
+from .information import map_entropy_of_code_counts
 from .weights import normalize_weights
 
 _CODE_DTYPES = (np.int8, np.uint8, np.int16, np.uint16)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import fields
 
 import gymnasium as gym
@@ -84,6 +83,7 @@ class EmmiEnv(gym.Env):
         self.world = None
         self.sim: Simulator | None = None
         self.slam: RBPF | None = None
+        self._stale = True  # the filter updated since the expected map and its products were computed
         self._window: HumanWindow | None = None
 
     # ------------------------------------------------------------------ episode
@@ -213,7 +213,7 @@ class EmmiEnv(gym.Env):
 
     def _refresh(self) -> None:
         """Recompute what depends on the expected map, only if the filter updated since last time."""
-        if not getattr(self, "_stale", True) and hasattr(self, "_expected"):
+        if not self._stale:
             return
         self._stale = False
         self._expected = self.slam.expected_map()

@@ -125,16 +125,20 @@ class Simulator:
             self.control_body.velocity = (v * math.cos(heading), v * math.sin(heading))
             self.control_body.angular_velocity = omega
             self.space.step(dt)
-            normals: list = []  # from the robot into each wall it touches
-            self.body.each_arbiter(lambda arbiter: normals.append(arbiter.contact_point_set.normal))
-            command = (v * math.cos(heading), v * math.sin(heading))
             # a collision is driving into a wall, not resting beside it or driving away
-            collided |= any(n.x * command[0] + n.y * command[1] > 1e-6 for n in normals)
+            collided |= any(n.x * v * math.cos(heading) + n.y * v * math.sin(heading) > 1e-6
+                            for n in self._contact_normals())
         after = self.true_pose
         reading = noisy_motion(*relative_motion(before, after), self.odometry_noise, self.rng)
         self.odometry_pose = compose_motion(self.odometry_pose, *reading)
         self.time += cfg.control_period
         return StepResult(after, self.odometry_pose.copy(), collided)
+
+    def _contact_normals(self) -> list:
+        """Unit normals from the robot into each wall it touches (pymunk passes the body's shape first)."""
+        normals: list = []
+        self.body.each_arbiter(lambda arbiter: normals.append(arbiter.contact_point_set.normal))
+        return normals
 
     def scan(self) -> np.ndarray:
         """A noisy laser scan from the robot's true pose."""
