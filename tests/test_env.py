@@ -248,3 +248,19 @@ def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
             env, lambda _, command=command: np.array(command, dtype=np.float32))
         assert not terminated and info["sim_steps"] == env.unwrapped.config.max_sim_steps
     assert returns["still"] < explore_return and returns["spin"] < explore_return, (returns, explore_return)
+
+
+def test_pooled_map_keeps_thin_walls():
+    """A wall one cell thick under 0.5 m pixels of 0.1 m cells still shows in every pixel it crosses."""
+    from emmi_gym.env.observation import MapPooling
+    from emmi_gym.grid import GridGeometry
+
+    geometry = GridGeometry(0.1, 0.0, 0.0, 100, 100)
+    em = np.full(geometry.shape, 0.5)
+    em[:, :] = 0.1           # all known free
+    em[:, 52] = 0.95         # a wall at x = 5.2 m, one cell thick
+    em[80:, :30] = 0.5       # an unknown corner
+    image = MapPooling()(em, geometry, (0.0, 0.0, 0.5), 20)
+    wall_col = 10            # x 5.0 - 5.5 m
+    assert (image[:, wall_col] == 242).all()
+    assert image[10, 3] == 25 and image[0, 0] == 127

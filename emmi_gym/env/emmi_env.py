@@ -84,6 +84,7 @@ class EmmiEnv(gym.Env):
         self.sim: Simulator | None = None
         self.slam: RBPF | None = None
         self._stale = True  # the filter updated since the expected map and its products were computed
+        self._pooling = obs.MapPooling()
         self._window: HumanWindow | None = None
 
     # ------------------------------------------------------------------ episode
@@ -216,6 +217,7 @@ class EmmiEnv(gym.Env):
         if not self._stale:
             return
         self._stale = False
+        self._stale_map_channel = True
         self._expected = self.slam.expected_map()
         known_free = certainty.observed_cells(self._expected) & (self._expected < 0.5)
         self._coverage = float(np.count_nonzero(known_free & self._reachable)) / self._n_reachable
@@ -260,8 +262,10 @@ class EmmiEnv(gym.Env):
         pose = self.slam.pose_estimate(self.sim.odometry_pose)
         cfg = self.config
         window = obs.view_window(self.world.bounds, pose, cfg.obs_size, cfg.egocentric, cfg.egocentric_extent)
-        image = obs.map_image(self._expected, self.geometry, self.slam.paths[self.slam.best], pose, window,
-                              cfg.obs_size)
+        if cfg.egocentric or self._stale_map_channel:
+            self._map_channel = self._pooling(self._expected, self.geometry, window, cfg.obs_size)
+            self._stale_map_channel = False
+        image = obs.map_image(self._map_channel, self.slam.paths[self.slam.best], pose, window, cfg.obs_size)
         if cfg.observation == "image":
             return image
         return {"map": image, "pose": obs.pose_vector(pose, self.world.bounds),

@@ -8,6 +8,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ..grid import GridGeometry
+from .planner import FREE_P, OCCUPIED_P
 
 UNKNOWN_PIXEL = 127
 PATH_PIXEL = 128
@@ -35,22 +36,53 @@ def view_window(bounds, pose, size: int, egocentric: bool, extent: float) -> tup
     return (xmin + xmax - side) / 2, (ymin + ymax - side) / 2, side / size
 
 
-def map_image(expected_map: np.ndarray, geometry: GridGeometry, path: np.ndarray, pose, window, size: int
-              ) -> np.ndarray:
-    """(2, size, size) uint8: channel 0 the expected map (0 free, 255 occupied, 127 unknown / outside),
-    channel 1 the estimated path (128) and the robot (255, with a pixel ahead for its heading).
+class MapPooling:
+    """Downsampling of the expected map to image pixels that keeps thin walls.
 
-    Row 0 is the top of the image (north up), as image tools show it.
+    Each pixel shows its cells' most occupied value if any cell is an obstacle
+    (p > 0.65), else their least occupied value if any is known free (p < 0.47), else
+    127 (unknown). Picking one cell per pixel would miss walls a few cells thick
+    whenever a pixel spans several cells. The cell -> pixel ordering is computed once
+    per (grid, window) and reused.
+    """
+
+    def __init__(self):
+        self._key = None
+
+    def _prepare(self, geometry: GridGeometry, window, size: int) -> None:
+        x0, y0, mpp = window
+        xs, ys = geometry.cell_centres()
+        col = np.floor((xs - x0) / mpp).astype(np.int64).ravel()
+        row = (size - 1 - np.floor((ys - y0) / mpp)).astype(np.int64).ravel()
+        inside = (row >= 0) & (row < size) & (col >= 0) & (col < size)
+        pixel = (row * size + col)[inside]
+        cells = np.flatnonzero(inside)
+        order = np.argsort(pixel, kind="stable")
+        self._cells, self._pixel = cells[order], pixel[order]
+        self._pixels, self._starts = np.unique(self._pixel, return_index=True)
+        self._key = (geometry, tuple(window), size)
+
+    def __call__(self, expected_map: np.ndarray, geometry: GridGeometry, window, size: int) -> np.ndarray:
+        if self._key != (geometry, tuple(window), size):
+            self._prepare(geometry, window, size)
+        values = expected_map.ravel()[self._cells]
+        image = np.full(size * size, UNKNOWN_PIXEL, dtype=np.uint8)
+        if values.size:
+            most = np.maximum.reduceat(values, self._starts)
+            least = np.minimum.reduceat(values, self._starts)
+            pooled = np.where(most > OCCUPIED_P, most, np.where(least < FREE_P, least, 0.5))
+            image[self._pixels] = np.clip(np.floor(pooled * 255.0), 0, 255).astype(np.uint8)
+        return image.reshape(size, size)
+
+
+def map_image(map_channel: np.ndarray, path: np.ndarray, pose, window, size: int) -> np.ndarray:
+    """(2, size, size) uint8: channel 0 the pooled expected map (see :class:`MapPooling`: 0 free,
+    255 occupied, 127 unknown or outside), channel 1 the estimated path (128) and the robot
+    (255, with a pixel ahead for its heading). Row 0 is the top of the image (north up).
     """
     x0, y0, mpp = window
-    centres = (np.arange(size) + 0.5) * mpp
-    xs, ys = x0 + centres, y0 + centres[::-1]
-    rows, cols = geometry.cell_of(xs[None, :].repeat(size, 0), ys[:, None].repeat(size, 1))
-    inside = geometry.inside(rows, cols)
-    image = np.full((2, size, size), 0, dtype=np.uint8)
-    image[0] = UNKNOWN_PIXEL
-    values = expected_map[rows[inside], cols[inside]]
-    image[0][inside] = np.clip(np.floor(values * 255.0), 0, 255).astype(np.uint8)
+    image = np.zeros((2, size, size), dtype=np.uint8)
+    image[0] = map_channel
 
     def pixel(x, y):
         return (size - 1 - np.floor((np.asarray(y) - y0) / mpp)).astype(int), np.floor((np.asarray(x) - x0) / mpp).astype(int)
