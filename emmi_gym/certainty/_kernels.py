@@ -119,3 +119,39 @@ def code_histogram(codes, n_codes, offset):
         tallies[0, np.int64(codes[j]) + offset] += 1
         j += 1
     return tallies.sum(axis=0)
+
+
+@nb.njit(cache=True)
+def pose_entropies(paths, weights, det_floor, log_2pie_3):
+    """Gaussian differential entropy (nats) of the weighted poses at each step of (M, T, 3) paths.
+
+    Per step: weighted mean of x, y; circular mean of theta; the weighted covariance
+    with theta wrapped about it; ``0.5 * (ln (2 pi e)^3 + ln max(det, det_floor))``.
+    """
+    m, t_steps = paths.shape[0], paths.shape[1]
+    out = np.empty(t_steps)
+    two_pi = 2.0 * math.pi
+    for t in range(t_steps):
+        mx = my = s = c = 0.0
+        for i in range(m):
+            wi = weights[i]
+            mx += wi * paths[i, t, 0]
+            my += wi * paths[i, t, 1]
+            s += wi * math.sin(paths[i, t, 2])
+            c += wi * math.cos(paths[i, t, 2])
+        mt = math.atan2(s, c)
+        cxx = cxy = cxt = cyy = cyt = ctt = 0.0
+        for i in range(m):
+            wi = weights[i]
+            dx = paths[i, t, 0] - mx
+            dy = paths[i, t, 1] - my
+            dt = (paths[i, t, 2] - mt + math.pi) % two_pi - math.pi
+            cxx += wi * dx * dx
+            cxy += wi * dx * dy
+            cxt += wi * dx * dt
+            cyy += wi * dy * dy
+            cyt += wi * dy * dt
+            ctt += wi * dt * dt
+        det = cxx * (cyy * ctt - cyt * cyt) - cxy * (cxy * ctt - cyt * cxt) + cxt * (cxy * cyt - cyy * cxt)
+        out[t] = 0.5 * (log_2pie_3 + math.log(max(det, det_floor)))
+    return out

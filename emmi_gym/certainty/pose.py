@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..motion import wrap_angle
+from . import _kernels
 from .expected_map import joint_entropy_of_parts
 from .grids import ParticleGrids
 from .weights import normalize_weights
@@ -17,22 +17,6 @@ from .weights import normalize_weights
 DEFAULT_DET_FLOOR = 1e-18
 
 _LOG_2PIE_3 = 3.0 * math.log(2.0 * math.pi * math.e)
-
-
-def _pose_covariances(poses: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Weighted covariance of (x, y, theta) for poses (..., M, 3); theta about its circular mean."""
-    mean_xy = np.einsum("m,...mk->...k", w, poses[..., :2])
-    mean_theta = np.arctan2(np.einsum("m,...m->...", w, np.sin(poses[..., 2])),
-                            np.einsum("m,...m->...", w, np.cos(poses[..., 2])))
-    d = np.empty_like(poses, dtype=np.float64)
-    d[..., :2] = poses[..., :2] - mean_xy[..., None, :]
-    d[..., 2] = wrap_angle(poses[..., 2] - mean_theta[..., None])
-    return np.einsum("m,...mi,...mj->...ij", w, d, d)
-
-
-def _gaussian_entropy(cov: np.ndarray, det_floor: float) -> np.ndarray:
-    det = np.maximum(np.linalg.det(cov), det_floor)
-    return 0.5 * (_LOG_2PIE_3 + np.log(det))
 
 
 def _check_poses(poses, last_dims: int, name: str) -> np.ndarray:
@@ -56,7 +40,7 @@ def pose_entropy(poses, weights, *, log_weights: bool = False, det_floor: float 
     w = normalize_weights(weights, log=log_weights)
     if w.shape[0] != p.shape[0]:
         raise ValueError(f"{p.shape[0]} poses but {w.shape[0]} weights")
-    return float(_gaussian_entropy(_pose_covariances(p, w), det_floor))
+    return float(_kernels.pose_entropies(p[:, None, :], w, det_floor, _LOG_2PIE_3)[0])
 
 
 def path_entropy(paths, weights, *, log_weights: bool = False, det_floor: float = DEFAULT_DET_FLOOR) -> float:
@@ -71,8 +55,7 @@ def path_entropy(paths, weights, *, log_weights: bool = False, det_floor: float 
         raise ValueError(f"{p.shape[0]} paths but {w.shape[0]} weights")
     if p.shape[1] == 0:
         raise ValueError("paths must hold at least one pose")
-    per_step = np.swapaxes(p, 0, 1)  # (T, M, 3)
-    return float(_gaussian_entropy(_pose_covariances(per_step, w), det_floor).mean())
+    return float(_kernels.pose_entropies(p, w, det_floor, _LOG_2PIE_3).mean())
 
 
 def joint_entropy(paths, grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False,
