@@ -82,8 +82,8 @@ def test_metrics_are_those_of_the_certainty_functions(loop_runs):
     assert last.emmi == pytest.approx(certainty.emmi(slam.maps.codes, w, lut=lut), abs=1e-12)
     assert last.emmi == pytest.approx(certainty.mean_information(slam.expected_map()), abs=1e-12)
     assert last.joint_entropy == pytest.approx(
-        certainty.joint_entropy(slam.paths, slam.maps.codes.astype(np.float64) * slam.cell_codes.step, w,
-                                logodds=True), rel=1e-9)
+        certainty.joint_entropy(slam.paths, slam.cell_codes.to_logodds(slam.maps.codes), w, logodds=True),
+        rel=1e-9)
     assert last.mean_information_best == pytest.approx(certainty.mean_information(slam.best_map()), abs=1e-12)
     assert last.neff == pytest.approx(1 / np.sum(w**2))
     assert 0 < last.emmi < 1 and 1 <= last.neff <= slam.config.particles

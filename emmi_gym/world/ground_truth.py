@@ -30,10 +30,6 @@ class GroundTruth:
         """Boolean mask of the free space reachable from the start."""
         return self.grid == FREE
 
-    @property
-    def known(self) -> np.ndarray:
-        return self.grid != UNKNOWN
-
 
 def wall_mask(world: WorldSpec, geometry: GridGeometry) -> np.ndarray:
     """Cells that a wall overlaps: centre closer than half the thickness plus half a cell to its centre line.
@@ -81,10 +77,3 @@ def is_reachable(truth: GroundTruth, x: float, y: float) -> bool:
     """Whether the point (x, y) lies in the free space reachable from the start."""
     row, col = truth.geometry.cell_of(x, y)
     return bool(truth.geometry.inside(row, col) and truth.grid[row, col] == FREE)
-
-
-def reachable_area(truth: GroundTruth) -> float:
-    """Area of the reachable free space, square metres."""
-    return float(truth.reachable.sum()) * truth.geometry.resolution ** 2
-
-
