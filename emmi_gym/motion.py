@@ -19,12 +19,22 @@ def wrap_angle(a):
     return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi
 
 
+#: Below this translation (m) a motion is a turn on the spot: rot1 is 0, not the direction of a
+#: few microns of jitter, whose arbitrary angle would scale the rotation noise (as in AMCL).
+MIN_TRANSLATION = 0.01
+
+
 def relative_motion(before, after) -> tuple[float, float, float]:
-    """(rot1, trans, rot2) taking pose ``before`` to ``after``; trans < 0 for backward motion."""
+    """(rot1, trans, rot2) taking pose ``before`` to ``after``; trans < 0 for backward motion.
+
+    Below ``MIN_TRANSLATION`` the whole turn goes to rot2 and the (tiny) translation is
+    taken along the initial heading.
+    """
     dx, dy = after[0] - before[0], after[1] - before[1]
     trans = math.hypot(dx, dy)
-    if trans < 1e-9:
-        return 0.0, 0.0, float(wrap_angle(after[2] - before[2]))
+    if trans < MIN_TRANSLATION:
+        along = dx * math.cos(before[2]) + dy * math.sin(before[2])
+        return 0.0, along, float(wrap_angle(after[2] - before[2]))
     rot1 = float(wrap_angle(math.atan2(dy, dx) - before[2]))
     if abs(rot1) > math.pi / 2:  # moving backwards: keep the rotations small
         rot1 = float(wrap_angle(rot1 + math.pi))

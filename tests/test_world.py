@@ -363,3 +363,14 @@ def test_resting_against_a_wall_is_not_a_collision():
         sim.step(0.6, 0.0)  # drive into the wall at x = 1.9 and keep pushing
     assert sim.step(0.6, 0.0).collided
     assert not any(sim.step(0.0, 0.0).collided for _ in range(5))  # then stand still against it
+
+
+def test_turning_on_the_spot_is_all_rot2():
+    """A few microns of jitter must not become rot1 (its arbitrary angle would scale the noise)."""
+    from emmi_gym.motion import MIN_TRANSLATION, motion_std
+
+    before, after = np.array([1.0, 2.0, 0.3]), np.array([1.0 + 3e-6, 2.0 - 2e-6, 0.45])
+    rot1, trans, rot2 = relative_motion(before, after)
+    assert rot1 == 0.0 and abs(trans) < MIN_TRANSLATION and rot2 == pytest.approx(0.15)
+    sd_rot1, _, sd_rot2 = motion_std(rot1, trans, rot2, OdometryNoise().alphas)
+    assert sd_rot1 < 1e-6 and sd_rot2 == pytest.approx(np.sqrt(0.02) * 0.15, rel=1e-3)
