@@ -264,3 +264,31 @@ def test_pooled_map_keeps_thin_walls():
     wall_col = 10            # x 5.0 - 5.5 m
     assert (image[:, wall_col] == 242).all()
     assert image[10, 3] == 25 and image[0, 0] == 127
+
+
+def test_the_laser_is_simulated_only_when_the_filter_will_use_it():
+    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL)
+    env.reset(seed=0)
+    core, scans = env.unwrapped, []
+    original = core.sim.scan
+    core.sim.scan = lambda: scans.append(1) or original()
+    for _ in range(30):  # standing still: no filter update is due
+        env.step(np.zeros(2, dtype=np.float32))
+    assert scans == []
+    for _ in range(30):  # 30 steps at full speed = 1.8 m: about one update per 0.5 m
+        _, _, _, _, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
+        assert len(scans) == core.slam.step - 1  # one scan per update since reset's first one
+    assert 2 <= len(scans) <= 4
+
+
+def test_targets_near_a_blocked_attempt_are_not_offered_again():
+    from emmi_gym.env.candidates import BLOCKED_RADIUS, candidate_slots
+
+    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env.reset(seed=0)
+    core = env.unwrapped
+    first = next(t for t in core.targets if t is not None)
+    slots = candidate_slots(core._expected, core.slam.paths[core.slam.best], core._costs, 6, 2,
+                            blocked=[(first.x, first.y)])
+    assert all(t is None or np.hypot(t.x - first.x, t.y - first.y) > BLOCKED_RADIUS for t in slots)
+    assert sum(t is not None for t in slots) >= 1

@@ -184,6 +184,7 @@ def test_update_policy_waits_for_motion():
     angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
     ranges = np.full(90, 3.0)
     assert slam.process([0, 0, 0], ranges, angles) is not None  # the first scan initialises
+    assert not slam.update_due([0.3, 0, 0]) and slam.update_due([0.55, 0, 0]) and slam.update_due([0, 0, -0.35])
     assert slam.process([0.3, 0, 0], ranges, angles) is None
     assert slam.process([0.3, 0, 0.2], ranges, angles) is None
     assert slam.process([0.55, 0, 0.2], ranges, angles) is not None

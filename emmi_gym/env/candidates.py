@@ -19,6 +19,7 @@ MIN_TRAVEL = 1.0              # m: a target nearer than this is where the robot 
 LOOP_MIN_PATH = 12.0          # m of path between a past pose and the robot for a revisit to close a loop
 LOOP_RATIO = 1.5              # ... and at least this ratio of path length to travel cost
 REVISIT_SPACING = 3.0         # m between two revisit targets
+BLOCKED_RADIUS = 1.0          # m round a target whose attempt ended blocked: no target there any more
 
 
 @dataclass(frozen=True)
@@ -89,9 +90,16 @@ def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
 
 
 def candidate_slots(expected_map: np.ndarray, path: np.ndarray, costs: CostMap, n_frontiers: int,
-                    n_revisits: int) -> list[Target | None]:
-    """The action slots: frontiers then revisits, None where a slot is empty."""
-    frontiers = frontier_targets(expected_map, costs)[:n_frontiers]
-    revisits = revisit_targets(path, costs)[:n_revisits]
+                    n_revisits: int, blocked=()) -> list[Target | None]:
+    """The action slots: frontiers then revisits, None where a slot is empty.
+
+    Targets within ``BLOCKED_RADIUS`` of a ``blocked`` point (where an earlier attempt
+    ended against a wall) are left out, so the robot is not sent into the same wall again.
+    """
+    def open_(t: Target) -> bool:
+        return all(np.hypot(t.x - bx, t.y - by) > BLOCKED_RADIUS for bx, by in blocked)
+
+    frontiers = [t for t in frontier_targets(expected_map, costs) if open_(t)][:n_frontiers]
+    revisits = [t for t in revisit_targets(path, costs) if open_(t)][:n_revisits]
     return (frontiers + [None] * (n_frontiers - len(frontiers))
             + revisits + [None] * (n_revisits - len(revisits)))

@@ -46,7 +46,8 @@ class EmmiEnv(gym.Env):
     action picks one of ``n_frontiers + n_revisits`` candidate targets (use
     :meth:`action_masks` with sb3-contrib's MaskablePPO); the robot plans a path on
     the expected map and follows it with its estimated pose until it arrives, is
-    blocked, or ``macro_timeout`` simulator steps pass. An invalid (empty, masked)
+    blocked (a target whose attempt ended blocked is not offered again this episode), or
+    ``macro_timeout`` simulator steps pass. An invalid (empty, masked)
     slot makes it stand still for 150 simulator steps (15 s), which costs time (the masks keep
     slot 0 valid for that when no target is left); so does a target it cannot set off for. In velocity
     mode an action is (v, omega) in [-1, 1] scaled to the robot's limits (or one of
@@ -105,6 +106,7 @@ class EmmiEnv(gym.Env):
         self.sim_steps = self.collisions = self.decisions = 0
         self._true_at_updates: list[np.ndarray] = []
         self._true_path = [self.sim.true_pose]
+        self._blocked: list[tuple[float, float]] = []
         self._metrics = None
         self._new_updates: list[dict] = []
         self._feed(self.sim.odometry_pose, self.sim.true_pose)
@@ -168,13 +170,20 @@ class EmmiEnv(gym.Env):
         if not 0 <= action < self.config.n_actions:
             raise ValueError(f"action {action} is outside Discrete({self.config.n_actions})")
         target: Target | None = self._slots[action]
-        moved = target is not None and self._follow(target)
-        if not moved:  # an empty slot, or a target the robot cannot leave for: stand still
+        outcome = self._follow(target) if target is not None else "stayed"
+        if outcome == "blocked":  # never offer it again this episode
+            self._blocked.append((target.x, target.y))
+            self._stale = True
+        if outcome == "stayed":  # an empty slot, or a target the robot cannot leave for: stand still
             for _ in range(STAY_STEPS):
                 self._sim_step(0.0, 0.0)
 
-    def _follow(self, target: Target) -> bool:
-        """Plan to ``target`` on the expected map and follow the path; False if not a single step was taken."""
+    def _follow(self, target: Target) -> str:
+        """Plan to ``target`` on the expected map and follow the path.
+
+        Returns "stayed" if not a single step was taken, "blocked" if it ended driving
+        into a wall for ``BLOCKED_STEPS`` steps, else "moved".
+        """
         waypoints = self._costs.path_to(target.x, target.y)
         follower = WaypointFollower(waypoints, self.robot_config.max_speed, self.robot_config.max_turn_rate,
                                     tolerance=0.3)
@@ -187,8 +196,8 @@ class EmmiEnv(gym.Env):
             taken += 1
             colliding = colliding + 1 if collided else 0
             if colliding >= BLOCKED_STEPS:
-                break
-        return taken > 0
+                return "blocked"
+        return "moved" if taken else "stayed"
 
     def _sim_step(self, v: float, omega: float) -> bool:
         result = self.sim.step(v, omega)
@@ -199,6 +208,9 @@ class EmmiEnv(gym.Env):
         return result.collided
 
     def _feed(self, odometry_pose, true_pose) -> None:
+        """Give the RBPF a scan when it will use one (the laser is not simulated in between)."""
+        if not self.slam.update_due(odometry_pose):
+            return
         metrics = self.slam.process(odometry_pose, self.sim.scan(), self._angles, self.sim.time)
         if metrics is not None:
             self._metrics = metrics
@@ -228,7 +240,7 @@ class EmmiEnv(gym.Env):
             pose = self.slam.pose_estimate(self.sim.odometry_pose)
             self._costs = travel_costs(self._expected, self.geometry, pose[:2], self.robot_config.radius)
             self._slots = candidate_slots(self._expected, self.slam.paths[self.slam.best], self._costs,
-                                          self.config.n_frontiers, self.config.n_revisits)
+                                          self.config.n_frontiers, self.config.n_revisits, self._blocked)
 
     def _take_snapshot(self) -> Snapshot:
         m = self._metrics

@@ -10,7 +10,8 @@ from skimage.graph import MCP_Geometric
 
 from ..grid import GridGeometry
 
-OCCUPIED_P = 0.65   # expected-map probability above which a cell is an obstacle
+OCCUPIED_P = 0.65   # expected-map probability above which a cell is surely an obstacle
+BLOCKING_P = 0.55   # ... above which the planner keeps out: a wall blurred by disagreeing particles still blocks
 FREE_P = 0.47       # ... below which it is known free (observed in the sense of eq. 10: |p - 0.5| > 0.0224)
 UNKNOWN_COST = 2.0  # unknown cells may be crossed (optimistic planning), at twice the cost
 
@@ -44,7 +45,8 @@ class CostMap:
 def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, robot_radius: float) -> CostMap:
     """Cost-distance from ``start_xy`` over the expected map.
 
-    Obstacles (p > 0.65) are inflated: cells closer than the robot's radius plus 5 cm
+    Obstacles (p > 0.55: more likely occupied than not, so a wall blurred by particles
+    that disagree still blocks) are inflated: cells closer than the robot's radius plus 5 cm
     are impassable, and the cost rises within twice that distance, so paths keep to
     the middle of corridors. Known free cells cost 1 per metre, unknown ones 2 (they
     may be crossed: a loop-closing target behind a stretch not yet seen is reachable).
@@ -52,7 +54,7 @@ def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, rob
     brushing a wall can still leave.
     """
     res = geometry.resolution
-    obstacle = expected_map > OCCUPIED_P
+    obstacle = expected_map > BLOCKING_P
     clearance = ndimage.distance_transform_edt(~obstacle) * res
     costs = np.where(expected_map < FREE_P, 1.0, UNKNOWN_COST)
     keep_out = robot_radius + 0.05

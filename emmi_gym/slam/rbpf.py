@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import certainty
 from ..grid import GridGeometry
-from ..motion import compose_motion, motion_std, perturb_motion, relative_motion
+from ..motion import compose_motion, motion_std, perturb_motion, relative_motion, wrap_angle
 from . import _kernels
 from .config import RBPFConfig
 from .occupancy import ParticleMaps
@@ -150,12 +150,20 @@ class RBPF:
         self._last_odometry = None
         self.step = 0
 
+    def update_due(self, odometry_pose) -> bool:
+        """Whether a scan taken at ``odometry_pose`` would be used: the first one, or once the odometry
+        has moved ``linear_update`` metres or turned ``angular_update`` radians since the last update."""
+        if self._last_odometry is None:
+            return True
+        _, trans, _ = relative_motion(self._last_odometry, odometry_pose)
+        turned = abs(float(wrap_angle(odometry_pose[2] - self._last_odometry[2])))
+        return abs(trans) >= self.config.linear_update or turned >= self.config.angular_update
+
     def process(self, odometry_pose, ranges, angles, timestamp: float = 0.0) -> UpdateMetrics | None:
         """Feed one scan with the odometry pose at which it was taken.
 
-        The first scan initialises the grids. Later scans update the filter only once the
-        odometry has moved ``linear_update`` metres or turned ``angular_update`` radians
-        since the last update (odometry in between accumulates); others return None.
+        The first scan initialises the grids. Later scans update the filter only when
+        :meth:`update_due` (odometry in between accumulates); others return None.
         """
         odometry_pose = np.asarray(odometry_pose, dtype=np.float64)
         ranges = np.ascontiguousarray(ranges, dtype=np.float64)
@@ -166,12 +174,11 @@ class RBPF:
             raise RuntimeError("call reset(pose, rng) before process()")
         if self._last_odometry is None:
             return self._initialise(odometry_pose, ranges, angles, timestamp)
-        rot1, trans, rot2 = relative_motion(self._last_odometry, odometry_pose)
-        turned = abs((odometry_pose[2] - self._last_odometry[2] + math.pi) % (2 * math.pi) - math.pi)
-        if abs(trans) < self.config.linear_update and turned < self.config.angular_update:
+        if not self.update_due(odometry_pose):
             return None
+        motion = relative_motion(self._last_odometry, odometry_pose)
         self._last_odometry = odometry_pose
-        return self._update((rot1, trans, rot2), ranges, angles, timestamp)
+        return self._update(motion, ranges, angles, timestamp)
 
     def _initialise(self, odometry_pose, ranges, angles, timestamp) -> UpdateMetrics:
         self._last_odometry = odometry_pose
