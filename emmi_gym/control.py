@@ -27,6 +27,11 @@ class WaypointFollower:
     def done(self) -> bool:
         return self.index >= len(self.waypoints)
 
+    @property
+    def remaining(self) -> list[tuple[float, float]]:
+        """The waypoints not reached yet."""
+        return self.waypoints[self.index:]
+
     def command(self, pose) -> tuple[float, float]:
         x, y, theta = pose
         while not self.done:

@@ -51,8 +51,8 @@ class RandomPolicy:
 class GoalSequencePolicy:
     """Visit named places of the world in order (each by the valid target nearest to it), then explore.
 
-    ``phase`` counts the goals reached; the policy records at which RBPF update each
-    goal was reached in ``reached_at_update`` when the caller passes it the update count.
+    ``phase`` counts the goals reached (judged on the estimated pose, within
+    ``GOAL_RADIUS``); :meth:`advance` brings it up to date after a step.
     """
 
     def __init__(self, name: str, goals: tuple[str, ...]):
@@ -62,16 +62,27 @@ class GoalSequencePolicy:
     def reset(self, seed: int | None = None) -> None:
         self.phase = 0
 
-    def __call__(self, env) -> int:
+    @property
+    def done(self) -> bool:
+        """Whether every goal has been reached."""
+        return self.phase >= len(self.goals)
+
+    def advance(self, env) -> int:
+        """Count the goals the robot now stands at (in order) and return the phase."""
         core = _core(env)
         pose = core.estimated_pose
-        while self.phase < len(self.goals):
+        while not self.done:
             goal = core.world.place(self.goals[self.phase])
             if np.hypot(pose[0] - goal.x, pose[1] - goal.y) > GOAL_RADIUS:
                 break
             self.phase += 1
+        return self.phase
+
+    def __call__(self, env) -> int:
+        core = _core(env)
+        self.advance(core)
         mask = core.action_masks()
-        if self.phase >= len(self.goals):
+        if self.done:
             return int(np.flatnonzero(mask)[0])
         goal = core.world.place(self.goals[self.phase])
         targets = core.targets

@@ -292,3 +292,34 @@ def test_targets_near_a_blocked_attempt_are_not_offered_again():
                             blocked=[(first.x, first.y)])
     assert all(t is None or np.hypot(t.x - first.x, t.y - first.y) > BLOCKED_RADIUS for t in slots)
     assert sum(t is not None for t in slots) >= 1
+
+
+def test_a_wall_seen_on_the_way_makes_the_robot_replan():
+    from emmi_gym.env.planner import path_obstructed, travel_costs
+    from emmi_gym.grid import GridGeometry
+
+    geometry = GridGeometry(0.1, 0.0, 0.0, 60, 100)      # 10 m x 6 m, all known free
+    em = np.full(geometry.shape, 0.1)
+    straight = [(1.0, 3.0), (9.0, 3.0)]
+    assert not path_obstructed(em, geometry, straight, 0.2)
+    em[10:50, 50] = 0.9                                  # a wall at x = 5 m from y = 1 to 5 m
+    assert path_obstructed(em, geometry, straight, 0.2)
+    assert not path_obstructed(em, geometry, straight, 0.2, skip=8.5)  # only the part past the wall is checked
+    costs = travel_costs(em, geometry, (1.0, 3.0), 0.2, goal_xy=(9.0, 3.0))
+    detour = [(1.0, 3.0)] + costs.path_to(9.0, 3.0)
+    assert not path_obstructed(em, geometry, detour, 0.2)
+    assert max(y for _, y in detour) > 5.2 or min(y for _, y in detour) < 0.8  # round an end of the wall
+    assert np.hypot(*np.subtract(detour[-1], (9.0, 3.0))) < 0.1
+
+
+def test_loop_closing_target_is_reached_without_pushing_into_walls():
+    """From the decision point the start lies behind a corner the map has barely seen: the first plan
+    cuts through unknown space, and only replanning on the way keeps the robot off the walls."""
+    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env.reset(seed=1)
+    core = env.unwrapped
+    start = core.world.place("target_a")
+    slot = next(k for k, t in enumerate(core.targets) if t is not None and np.hypot(t.x - start.x, t.y - start.y) < 1)
+    _, _, _, _, info = env.step(slot)
+    assert np.hypot(*(core.estimated_pose[:2] - start.xy)) < 0.5
+    assert info["collisions"] <= 5 and core._blocked == []

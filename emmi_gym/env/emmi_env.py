@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .. import certainty
+from .. import certainty, safety
 from ..control import WaypointFollower
 from ..evaluation import absolute_trajectory_error, map_accuracy
 from ..grid import GridGeometry
@@ -18,7 +18,7 @@ from ..world import (GeneratorConfig, LaserConfig, OdometryNoise, RobotConfig, S
 from . import observation as obs
 from .candidates import Target, candidate_slots
 from .config import EnvConfig, make_config
-from .planner import travel_costs
+from .planner import KEEP_OUT_MARGIN, path_obstructed, travel_costs
 from .rendering import HumanWindow, render_frame
 from .rewards import Snapshot, reward_components, total_reward
 
@@ -27,8 +27,13 @@ DISCRETE_VELOCITIES = ((0.0, 0.0), (1.0, 0.0), (0.3, 1.0), (0.3, -1.0), (-0.5, 0
 #: Simulator steps (15 s) an invalid (masked) waypoint action stands still for: doing nothing
 #: through the default 60 decisions costs 9000 steps of time, about what it costs in velocity mode.
 STAY_STEPS = 150
-#: Consecutive colliding steps after which a macro-action counts as blocked.
+#: Consecutive steps driving into a wall, or held back by the safety layer, after which a
+#: macro-action replans (with the scan's obstacles), and after which it counts as blocked.
+REPLAN_STALLED_STEPS = 5
 BLOCKED_STEPS = 15
+#: Scan echoes closer than this (m) are obstacles for replanning, with this occupancy probability.
+SCAN_LAYER_RANGE = 3.0
+SCAN_LAYER_P = 0.9
 
 
 def _dataclass_from(cls, options: dict, name: str):
@@ -101,6 +106,7 @@ class EmmiEnv(gym.Env):
         if world is not self.world:
             self._set_world(world)
         self.sim.reset(rng)
+        self._scan_cache = None
         self.slam = RBPF(self.slam_config, max_range=self.laser_config.max_range, geometry=self.geometry)
         self.slam.reset(self.sim.odometry_pose, rng)
         self.sim_steps = self.collisions = self.decisions = 0
@@ -179,25 +185,74 @@ class EmmiEnv(gym.Env):
                 self._sim_step(0.0, 0.0)
 
     def _follow(self, target: Target) -> str:
-        """Plan to ``target`` on the expected map and follow the path.
+        """Plan to ``target`` on the expected map and follow the path with the estimated pose.
 
-        Returns "stayed" if not a single step was taken, "blocked" if it ended driving
-        into a wall for ``BLOCKED_STEPS`` steps, else "moved".
+        After every filter update the rest of the path is checked against the new
+        expected map and replanned if a wall now lies on it (as move_base replans); every
+        command passes the safety layer on the live scan first. Returns "stayed" if not a
+        single step was taken, "blocked" if for ``BLOCKED_STEPS`` steps it drove into a wall
+        or the safety layer would not let it drive on, or the target became unreachable,
+        else "moved".
         """
-        waypoints = self._costs.path_to(target.x, target.y)
-        follower = WaypointFollower(waypoints, self.robot_config.max_speed, self.robot_config.max_turn_rate,
-                                    tolerance=0.3)
+        follower = self._follower(self._costs.path_to(target.x, target.y))
+        planned_at = self.slam.step
         colliding = taken = 0
         for _ in range(self.config.macro_timeout):
-            v, omega = follower.command(self.slam.pose_estimate(self.sim.odometry_pose))
+            pose = self.slam.pose_estimate(self.sim.odometry_pose)
+            if self.slam.step != planned_at or colliding == REPLAN_STALLED_STEPS:
+                planned_at = self.slam.step
+                follower = self._replanned(follower, pose, target)
+                if follower is None:
+                    return "blocked"
+            v, omega = follower.command(pose)
             if follower.done or self.sim_steps >= self.config.max_sim_steps:
                 break
-            collided = self._sim_step(v, omega)
+            safe_v, safe_omega = self._guarded(v, omega)
+            collided = self._sim_step(safe_v, safe_omega)
             taken += 1
-            colliding = colliding + 1 if collided else 0
+            stalled = collided or (v > 0.0 and safe_v <= 0.0)
+            colliding = colliding + 1 if stalled else 0
             if colliding >= BLOCKED_STEPS:
                 return "blocked"
         return "moved" if taken else "stayed"
+
+    def _guarded(self, v: float, omega: float) -> tuple[float, float]:
+        """(v, omega) made safe against the current laser scan (:mod:`emmi_gym.safety`)."""
+        points = safety.scan_points(self._scan_now(), self._angles, self.laser_config.max_range,
+                                    within=self.robot_config.max_speed * safety.HORIZON + 1.0)
+        return safety.safe_command(v, omega, points, self.robot_config.radius, self.robot_config.max_speed,
+                                   self.robot_config.max_turn_rate)
+
+    def _scan_now(self) -> np.ndarray:
+        """The laser scan at the current simulator time, cast once and shared by the safety layer and the filter."""
+        if self._scan_cache is None or self._scan_cache[0] != self.sim.time:
+            self._scan_cache = (self.sim.time, self.sim.scan())
+        return self._scan_cache[1]
+
+    def _follower(self, waypoints) -> WaypointFollower:
+        return WaypointFollower(waypoints, self.robot_config.max_speed, self.robot_config.max_turn_rate,
+                                tolerance=0.3)
+
+    def _replanned(self, follower: WaypointFollower, pose, target: Target) -> WaypointFollower | None:
+        """``follower`` if the rest of its path is still clear, else one on a new path to ``target`` (None
+        if it cannot be reached any more). Clear on the current expected map plus the current scan's
+        echoes within ``SCAN_LAYER_RANGE`` (a costmap's obstacle layer: walls seen only at grazing angles
+        are faint in the map but plain in the scan)."""
+        expected = self.slam.expected_map()
+        points = safety.scan_points(self._scan_now(), self._angles, self.laser_config.max_range, SCAN_LAYER_RANGE)
+        cos, sin = np.cos(pose[2]), np.sin(pose[2])
+        rows, cols = self.geometry.cell_of(pose[0] + cos * points[:, 0] - sin * points[:, 1],
+                                           pose[1] + sin * points[:, 0] + cos * points[:, 1])
+        inside = self.geometry.inside(rows, cols)
+        expected[rows[inside], cols[inside]] = np.maximum(expected[rows[inside], cols[inside]], SCAN_LAYER_P)
+        radius = self.robot_config.radius
+        if not path_obstructed(expected, self.geometry, [tuple(pose[:2])] + follower.remaining, radius,
+                               skip=radius + KEEP_OUT_MARGIN):
+            return follower
+        costs = travel_costs(expected, self.geometry, pose[:2], radius, goal_xy=(target.x, target.y))
+        if not np.isfinite(costs.cost_to(target.x, target.y)):
+            return None
+        return self._follower(costs.path_to(target.x, target.y))
 
     def _sim_step(self, v: float, omega: float) -> bool:
         result = self.sim.step(v, omega)
@@ -211,7 +266,7 @@ class EmmiEnv(gym.Env):
         """Give the RBPF a scan when it will use one (the laser is not simulated in between)."""
         if not self.slam.update_due(odometry_pose):
             return
-        metrics = self.slam.process(odometry_pose, self.sim.scan(), self._angles, self.sim.time)
+        metrics = self.slam.process(odometry_pose, self._scan_now(), self._angles, self.sim.time)
         if metrics is not None:
             self._metrics = metrics
             self._true_at_updates.append(true_pose)
@@ -262,6 +317,11 @@ class EmmiEnv(gym.Env):
     def estimated_pose(self) -> np.ndarray:
         """The robot's pose as the RBPF believes it now (best particle plus odometry since its update)."""
         return self.slam.pose_estimate(self.sim.odometry_pose)
+
+    @property
+    def expected_map(self) -> np.ndarray:
+        """A copy of the expected map now (eq. 6): occupancy probabilities on the grid of ``geometry``."""
+        return self._expected.copy()
 
     @property
     def targets(self) -> list[Target | None]:

@@ -1,4 +1,5 @@
-"""Paths on the expected map: cost-distance with obstacle inflation (scikit-image's MCP)."""
+"""Paths on the expected map: cost-distance with obstacle inflation (scikit-image's MCP), and the
+check that tells the robot to replan when the map it learns on the way blocks its path."""
 
 from __future__ import annotations
 
@@ -14,6 +15,9 @@ OCCUPIED_P = 0.65   # expected-map probability above which a cell is surely an o
 BLOCKING_P = 0.55   # ... above which the planner keeps out: a wall blurred by disagreeing particles still blocks
 FREE_P = 0.47       # ... below which it is known free (observed in the sense of eq. 10: |p - 0.5| > 0.0224)
 UNKNOWN_COST = 2.0  # unknown cells may be crossed (optimistic planning), at twice the cost
+PREFERRED_CLEARANCE = 0.8  # m from an obstacle beyond which a cell costs no extra
+CLEARANCE_COST = 8.0       # extra cost per cell at the impassable limit
+KEEP_OUT_MARGIN = 0.05     # m beyond the robot's radius that a path must keep from obstacles
 
 
 @dataclass
@@ -42,13 +46,16 @@ class CostMap:
         return [(float(xs[k]), float(ys[k])) for k in keep]
 
 
-def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, robot_radius: float) -> CostMap:
-    """Cost-distance from ``start_xy`` over the expected map.
+def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, robot_radius: float,
+                 goal_xy=None) -> CostMap:
+    """Cost-distance from ``start_xy`` over the expected map (to every cell, or until ``goal_xy`` is reached).
 
     Obstacles (p > 0.55: more likely occupied than not, so a wall blurred by particles
-    that disagree still blocks) are inflated: cells closer than the robot's radius plus 5 cm
-    are impassable, and the cost rises within twice that distance, so paths keep to
-    the middle of corridors. Known free cells cost 1 per metre, unknown ones 2 (they
+    that disagree still blocks) are inflated as by a ROS costmap's inflation layer: cells
+    closer than the robot's radius plus 5 cm are impassable, and the cost rises from 0 at
+    ``PREFERRED_CLEARANCE`` to ``CLEARANCE_COST`` at that limit, so paths keep to the middle
+    of corridors and round corners wide (the pose estimate may be decimetres off while the
+    filter is uncertain). Known free cells cost 1 per metre, unknown ones 2 (they
     may be crossed: a loop-closing target behind a stretch not yet seen is reachable).
     The robot's own footprint is passable (at the inflated cost), so that a robot
     brushing a wall can still leave.
@@ -57,14 +64,42 @@ def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, rob
     obstacle = expected_map > BLOCKING_P
     clearance = ndimage.distance_transform_edt(~obstacle) * res
     costs = np.where(expected_map < FREE_P, 1.0, UNKNOWN_COST)
-    keep_out = robot_radius + 0.05
-    costs = costs + 4.0 * np.clip((2 * keep_out - clearance) / keep_out, 0.0, 1.0)
+    keep_out = robot_radius + KEEP_OUT_MARGIN
+    soft = max(PREFERRED_CLEARANCE, 2 * keep_out)
+    costs = costs + CLEARANCE_COST * np.clip((soft - clearance) / (soft - keep_out), 0.0, 1.0) ** 2
     x, y = geometry.cell_centres()
     footprint = np.hypot(x - start_xy[0], y - start_xy[1]) <= robot_radius + res
     costs[(clearance < keep_out) & ~(footprint & ~obstacle)] = np.inf
-    row, col = geometry.cell_of(*start_xy)
-    row, col = int(np.clip(row, 0, geometry.rows - 1)), int(np.clip(col, 0, geometry.cols - 1))
+    row, col = _clipped_cell(geometry, start_xy)
     costs[row, col] = max(float(costs[row, col]), 1.0) if np.isfinite(costs[row, col]) else 5.0
     mcp = MCP_Geometric(costs)
-    cumulative, _ = mcp.find_costs([(row, col)])
+    ends = None if goal_xy is None else [_clipped_cell(geometry, goal_xy)]
+    cumulative, _ = mcp.find_costs([(row, col)], ends)
     return CostMap(geometry, cumulative, mcp)
+
+
+def _clipped_cell(geometry: GridGeometry, xy) -> tuple[int, int]:
+    row, col = geometry.cell_of(*xy)
+    return int(np.clip(row, 0, geometry.rows - 1)), int(np.clip(col, 0, geometry.cols - 1))
+
+
+def path_obstructed(expected_map: np.ndarray, geometry: GridGeometry, polyline, robot_radius: float,
+                    skip: float = 0.0) -> bool:
+    """Whether an obstacle (p > ``BLOCKING_P``) now lies closer than the planner's keep-out distance
+    to the polyline of (x, y) points, leaving out its first ``skip`` metres (where the robot is)."""
+    points = np.asarray(polyline, dtype=np.float64)
+    if len(points) < 2:
+        return False
+    res = geometry.resolution
+    lengths = np.hypot(*np.diff(points, axis=0).T)
+    along = np.concatenate([[0.0], np.cumsum(lengths)])
+    s = np.arange(skip, along[-1], res / 2)
+    if s.size == 0:
+        return False
+    rows, cols = geometry.cell_of(np.interp(s, along, points[:, 0]), np.interp(s, along, points[:, 1]))
+    reach = int(np.ceil((robot_radius + KEEP_OUT_MARGIN) / res))
+    dr, dc = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+    disk = (dr * dr + dc * dc) * res * res < (robot_radius + KEEP_OUT_MARGIN) ** 2
+    r = np.clip(rows[:, None] + dr[disk][None, :], 0, geometry.rows - 1)
+    c = np.clip(cols[:, None] + dc[disk][None, :], 0, geometry.cols - 1)
+    return bool(np.any(expected_map[r, c] > BLOCKING_P))

@@ -1,0 +1,74 @@
+"""A reactive safety layer on the live laser scan (the local planner of a navigation stack).
+
+The global path is planned on the expected map, which lags behind what the robot sees
+and may be shifted by the filter's pose error; a robot following it blindly brushes
+walls at corners. Before each command the robot checks it against the current scan, as
+the dynamic-window approach does (Fox, Burgard and Thrun 1997): among a small set of
+commands near the desired one, it takes the closest whose 1 s arc keeps the robot's
+radius plus a margin from every scan point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+HORIZON = 1.0        # s of motion checked ahead
+SUBSTEPS = 5         # poses checked along each arc
+MARGIN = 0.05        # m kept between the robot's body and any scan point
+SPEED_SCALES = np.array([1.0, 0.6, 0.3, 0.0])
+TURN_OFFSETS = np.array([0.0, -0.5, 0.5, -1.0, 1.0, -1.5, 1.5])  # rad/s added to the desired turn rate
+BACK_UP = -0.3       # fraction of the top speed for backing away when nothing forward is safe
+
+
+def scan_points(ranges: np.ndarray, angles: np.ndarray, max_range: float, within: float) -> np.ndarray:
+    """(P, 2) scan end points in the robot frame (x forward) that are echoes closer than ``within`` metres."""
+    keep = (ranges < max_range) & (ranges < within)
+    r, a = ranges[keep], angles[keep]
+    return np.column_stack([r * np.cos(a), r * np.sin(a)])
+
+
+def _arcs(v: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (C, SUBSTEPS) in the robot frame after driving each (v, omega) for t = HORIZON / SUBSTEPS, ..."""
+    t = np.linspace(HORIZON / SUBSTEPS, HORIZON, SUBSTEPS)[None, :]
+    v, omega = v[:, None], omega[:, None]
+    turning = np.abs(omega) > 1e-6
+    safe_omega = np.where(turning, omega, 1.0)
+    x = np.where(turning, v / safe_omega * np.sin(safe_omega * t), v * t)
+    y = np.where(turning, v / safe_omega * (1.0 - np.cos(safe_omega * t)), 0.0)
+    return x, y
+
+
+def safe_command(v: float, omega: float, points: np.ndarray, radius: float, max_speed: float,
+                 max_turn_rate: float) -> tuple[float, float]:
+    """The command nearest (v, omega) whose arc keeps ``radius + MARGIN`` from every point of ``points``.
+
+    Nearest by DWA-style cost: the change of turn rate (as a fraction of the limit) plus
+    the fraction of speed given up. Turning on the spot is always safe for the round
+    robot; when it already touches something it backs away instead, if that opens a gap.
+    """
+    clearance = radius + MARGIN
+    if points.size == 0:
+        return v, omega
+    now = float(np.min(np.hypot(points[:, 0], points[:, 1])))
+    if now > abs(v) * HORIZON + clearance:
+        return v, omega
+    scales = np.repeat(SPEED_SCALES, TURN_OFFSETS.size)
+    speeds = v * scales
+    turns = np.clip(omega + np.tile(TURN_OFFSETS, SPEED_SCALES.size), -max_turn_rate, max_turn_rate)
+    lowest = _closest_approach(speeds, turns, points)
+    ok = (lowest >= clearance) | ((speeds == 0.0) & (now >= clearance))
+    if ok.any():
+        cost = np.abs(turns - omega) / max_turn_rate + (1.0 - scales)
+        k = int(np.argmin(np.where(ok, cost, np.inf)))
+        return float(speeds[k]), float(turns[k])
+    back = BACK_UP * max_speed
+    if _closest_approach(np.array([back]), np.array([omega]), points)[0] > now:
+        return back, omega
+    return 0.0, omega
+
+
+def _closest_approach(speeds: np.ndarray, turns: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """For each command, the smallest distance from the robot's centre to any point along its arc."""
+    x, y = _arcs(speeds, turns)
+    gaps = np.hypot(x[:, :, None] - points[None, None, :, 0], y[:, :, None] - points[None, None, :, 1])
+    return gaps.min(axis=(1, 2))
