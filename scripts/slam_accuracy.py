@@ -1,6 +1,6 @@
 """Accuracy of the RBPF round the loop_corridor loop, over seeds (the full version of tests/test_slam.py).
 
-    python scripts/slam_accuracy.py [--seeds 20] [--particles 15]
+    python scripts/slam_accuracy.py [--seeds 20] [--particles 15] [--slam '{"logodds_free": -0.7}']
 
 For each seed: record start -> decision -> start (74 m), run the filter, and report
 the best particle's ATE (unaligned: the filter starts at the true start pose, as
@@ -13,6 +13,7 @@ start area than just before; Neff < 0.8 M or a resampling within 3 before to 7 a
 from __future__ import annotations
 
 import argparse
+import json
 
 import numpy as np
 
@@ -26,7 +27,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--particles", type=int, default=15)
+    parser.add_argument("--slam", default="{}", help="RBPFConfig overrides as JSON")
     args = parser.parse_args()
+    overrides = json.loads(args.slam)
     world = load_world("loop_corridor")
     sim = Simulator(world)
     angles = sim.laser.config.angles
@@ -36,7 +39,7 @@ def main() -> None:
     rows = []
     for seed in range(args.seeds):
         rec = drive_route(sim, route, np.random.default_rng(seed))
-        slam = RBPF(RBPFConfig(particles=args.particles), max_range=8.0, geometry=geometry)
+        slam = RBPF(RBPFConfig(**dict(overrides, particles=args.particles)), max_range=8.0, geometry=geometry)
         slam.reset(rec.odometry_poses[0], np.random.default_rng(1000 + seed))
         metrics, steps = [], []
         for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans)):

@@ -127,7 +127,9 @@ def test_fig3_aligned_fusion_raises_mi_misaligned_lowers_it():
     other = _mi_of([second], scans[1:2], angles, geometry)
     fused = [_mi_of([first, second + error], scans[:2], angles, geometry)
              for error in (np.zeros(3), np.array([0.1, 0.0, 0.05]), np.array([0.3, -0.2, 0.15]))]
-    assert fused[0] > 2 * max(one, other)
+    # one pass puts a free cell at p = 0.23 (0.22 bits), two agreeing ones at 0.08 (0.60 bits): the
+    # cells both scans see gain most, the rest keep their single-scan information
+    assert fused[0] > 1.5 * max(one, other)
     assert fused[0] > fused[1] > fused[2]
 
 
