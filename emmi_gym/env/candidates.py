@@ -32,6 +32,10 @@ class Target:
     travel_cost: float
     gain: float  # frontier: its length in cells; revisit: path length / travel cost
 
+    @property
+    def xy(self) -> tuple[float, float]:
+        return (self.x, self.y)
+
 
 def frontier_targets(expected_map: np.ndarray, costs: CostMap, observed_tol: float = 0.0224) -> list[Target]:
     """Clusters of known-free cells next to open unknown space, each represented by its cell nearest its centroid.
