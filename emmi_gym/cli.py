@@ -74,9 +74,64 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_ab(args: argparse.Namespace) -> int:
+    import time
+
+    from .experiments import ABSettings, run_ab, write_report
+    from .experiments.ab import check_world
+    from .experiments.report import summary_rows, summary_table
+    from .world import load_world
+
+    for name in ("seeds", "particles", "max_decisions"):
+        if getattr(args, name) < (2 if name == "seeds" else 1):
+            raise ValueError(f"--{name.replace('_', '-')} must be at least {2 if name == 'seeds' else 1} "
+                             f"(intervals need two seeds), got {getattr(args, name)}")
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    world = load_world(args.world)
+    check_world(world)
+    settings = ABSettings(world=args.world, particles=args.particles, max_decisions=args.max_decisions)
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    started = time.perf_counter()
+    runs = run_ab(seeds, settings, workers=args.workers, progress=not args.quiet)
+    elapsed = time.perf_counter() - started
+    text = f"world '{world.name}', {args.particles} particles, seeds {seeds.start}-{seeds.stop - 1}"
+    files = write_report(runs, args.out, world.walls, text)
+    print(files["summary"].read_text())
+    emmi = summary_table(summary_rows(runs))["emmi_change"]
+    mean, low, high, n, above = emmi["A - B"]
+    print(f"EMMI after the decision: A {emmi['A'][0]:+.3f}, B {emmi['B'][0]:+.3f} bits/cell; "
+          f"A - B {mean:+.3f} [{low:+.3f}, {high:+.3f}] (95%), A above B on {above} of {n} seeds")
+    print(f"{len(runs)} runs in {elapsed:.0f} s")
+    for path in files.values():
+        print(f"wrote {path}")
+    return 0
+
+
+def _add_ab_options(parser: argparse.ArgumentParser, seeds: int, particles: int, out: str) -> None:
+    parser.add_argument("--seeds", type=int, default=seeds, help=f"number of seeds (default {seeds})")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--world", default="loop_corridor",
+                        help="built-in world or .yaml with places decision, target_a, target_b and a "
+                             "to_decision route (default loop_corridor)")
+    parser.add_argument("--particles", type=int, default=particles, help=f"RBPF particles (default {particles})")
+    parser.add_argument("--max-decisions", type=int, default=40, help="waypoint decisions per run at most")
+    parser.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
+    parser.add_argument("--out", default=out, help=f"output folder (default {out})")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=_cmd_ab)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="emmi-gym", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
+    demo = sub.add_parser("demo", help="the paper's loop-closure experiment in small: A vs B on 3 seeds, "
+                                       "figures and summary in well under a minute")
+    _add_ab_options(demo, seeds=3, particles=10, out="emmi_demo")
+    ab = sub.add_parser("ab", help="the paper's A/B loop-closure experiment (Fig. 6): close the loop first "
+                                   "(A) vs explore first (B), over seeds, with figures, CSVs and intervals")
+    _add_ab_options(ab, seeds=20, particles=15, out="ab_out")
+
     metrics = sub.add_parser("metrics", help="show EMMI vs the joint entropy on the paper's Fig. 5 example")
     metrics.set_defaults(func=_cmd_metrics)
 

@@ -1,0 +1,179 @@
+"""The paper's main experiment (Blanco et al. 2006, Sec. V, Fig. 6): at the decision point of a
+loop, A closes the loop before entering the new area, B enters the new area first.
+
+Each seed gives one A run and one B run from the *same* state at the decision point (the
+environment's reset with that seed drives the loop up to it), so A and B are compared in
+pairs. A run records every RBPF update's measures (EMMI eq. 11, pose entropy, joint
+entropy eq. 12, ...) and ends when its policy has reached both goals (or after
+``max_decisions``).
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+
+import gymnasium as gym
+import numpy as np
+from scipy import ndimage
+from tqdm.auto import tqdm
+
+from ..certainty import observed_cells
+from ..evaluation import map_accuracy
+from ..policies import make_policy
+from ..world.ground_truth import FREE, UNKNOWN
+
+#: The two arms of the experiment and their scripted policies.
+POLICIES = {"A": "close_loop_first", "B": "explore_first"}
+#: The world's place that lies in the unexplored area B enters.
+NEW_AREA_PLACE = "target_b"
+
+
+@dataclass(frozen=True)
+class ABSettings:
+    """What an A/B run is made of: ``LoopCorridor-v0`` on ``world`` with these options."""
+
+    world: str = "loop_corridor"
+    particles: int = 15
+    max_decisions: int = 40
+    env_options: dict = field(default_factory=dict)
+
+    def make_env(self) -> gym.Env:
+        return gym.make("emmi_gym/LoopCorridor-v0", world=self.world, particles=self.particles,
+                        max_decisions=self.max_decisions, coverage_target=1.0, **self.env_options)
+
+
+@dataclass
+class ABRun:
+    """One run of one policy from the decision point.
+
+    ``rows`` holds the measures of every RBPF update from the start of the loop (with
+    ``phase``: the number of goals the policy had reached when that update came);
+    ``decision``, ``first_goal`` and ``second_goal`` are indices into ``rows`` (the last
+    update before the decision, and the update at which each goal was reached; None if
+    it never was). ``maps`` holds the expected map (eq. 6) at those moments,
+    ``paths`` the best particle's estimated path; ``final`` the ground-truth scores at the end.
+    """
+
+    seed: int
+    arm: str
+    policy: str
+    rows: list[dict]
+    decision: int
+    first_goal: int | None
+    second_goal: int | None
+    final: dict
+    maps: dict[str, np.ndarray]
+    paths: dict[str, np.ndarray]
+    extent: tuple[float, float, float, float]
+
+    def at(self, event: str) -> dict | None:
+        """The measures of the update at ``event`` ("decision", "first_goal", "second_goal", "end")."""
+        index = len(self.rows) - 1 if event == "end" else getattr(self, event)
+        return None if index is None else self.rows[index]
+
+    def change(self, measure: str, until: str = "first_goal") -> float:
+        """How much ``measure`` changed from the decision point to ``until`` (NaN if never reached)."""
+        end = self.at(until)
+        return float("nan") if end is None else end[measure] - self.at("decision")[measure]
+
+
+def new_area_mask(observed_at_decision: np.ndarray, truth_grid: np.ndarray, geometry, place,
+                  margin: float = 0.3) -> np.ndarray:
+    """The cells of the unexplored area round ``place``: the true free space that was still unknown
+    at the decision point and is connected to ``place``'s cell, grown by ``margin`` metres so that
+    its walls count, restricted to cells still unknown then that the ground truth labels."""
+    unknown_then = ~observed_at_decision
+    labels, _ = ndimage.label(unknown_then & (truth_grid == FREE))
+    row, col = geometry.cell_of(place.x, place.y)
+    if not geometry.inside(row, col) or labels[row, col] == 0:
+        raise ValueError(f"the place {NEW_AREA_PLACE!r} at ({place.x}, {place.y}) was already mapped at the "
+                         "decision point or lies off the grid: it does not mark an unexplored area")
+    region = labels == labels[row, col]
+    grown = ndimage.binary_dilation(region, iterations=max(1, int(round(margin / geometry.resolution))))
+    return grown & unknown_then & (truth_grid != UNKNOWN)
+
+
+def check_world(world) -> None:
+    """Raise a ValueError naming what ``world`` lacks for the experiment: the places decision,
+    target_a (back at the start: closes the loop), target_b (in the unexplored area) and a
+    to_decision route."""
+    missing = [f"place '{p}'" for p in ("decision", "target_a", NEW_AREA_PLACE) if p not in world.places]
+    missing += [] if "to_decision" in world.routes else ["route 'to_decision'"]
+    if missing:
+        raise ValueError(f"world '{world.name}' ({world.source}) cannot host the A/B experiment: it lacks "
+                         f"{', '.join(missing)}")
+
+
+def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABRun:
+    """Run arm ``"A"`` or ``"B"`` from the decision point of ``settings.world`` with ``seed``."""
+    if arm not in POLICIES:
+        raise ValueError(f"arm must be one of {sorted(POLICIES)}, got {arm!r}")
+    env = settings.make_env()
+    core = env.unwrapped
+    policy = make_policy(POLICIES[arm])
+    _, info = env.reset(seed=seed)
+    check_world(core.world)
+    policy.reset(seed)
+    rows = [dict(r, phase=0) for r in info["rbpf_updates"]]
+    events = {"decision": len(rows) - 1}
+    maps = {"decision": core.expected_map}
+    paths = {"decision": core.slam.paths[core.slam.best].copy()}
+    new_area = new_area_mask(observed_cells(maps["decision"]), core.truth.grid, core.geometry,
+                             core.world.place(NEW_AREA_PLACE))
+    new_area_truth = np.where(new_area, core.truth.grid, UNKNOWN)
+    new_area_on_arrival = float("nan")
+    truncated = False
+    while not policy.done and not truncated:
+        phase = policy.phase
+        _, _, _, truncated, info = env.step(policy(env))
+        rows += [dict(r, phase=phase) for r in info["rbpf_updates"]]
+        for reached in range(phase, policy.advance(env)):
+            event = ("first_goal", "second_goal")[reached]
+            events[event] = len(rows) - 1
+            maps[event] = core.expected_map
+            paths[event] = core.slam.paths[core.slam.best].copy()
+            if policy.goals[reached] == NEW_AREA_PLACE:
+                new_area_on_arrival = map_accuracy(maps[event], new_area_truth)
+    expected = core.expected_map
+    final = {
+        "map_accuracy": info["map_accuracy"], "ate": info["ate"], "coverage": info["coverage"],
+        "new_area_accuracy_on_arrival": new_area_on_arrival,
+        "new_area_accuracy": map_accuracy(expected, new_area_truth),
+        "new_area_cells": int(new_area.sum()), "sim_steps": info["sim_steps"], "decisions": core.decisions,
+        "collisions": info["collisions"], "completed": policy.done,
+    }
+    maps["end"] = expected
+    extent = core.geometry.extent
+    env.close()
+    return ABRun(seed, arm, POLICIES[arm], rows, events["decision"], events.get("first_goal"),
+                 events.get("second_goal"), final, maps, paths, extent)
+
+
+def _run(job: tuple[int, str, ABSettings]) -> ABRun:
+    return run_episode(*job)
+
+
+def run_ab(seeds, settings: ABSettings = ABSettings(), *, workers: int | None = None,
+           progress: bool = True) -> list[ABRun]:
+    """Run A and B for every seed, in ``workers`` processes (default: one per core; 1 = in this process).
+
+    Returns the runs sorted by seed, then arm; the same seeds give the same runs,
+    whatever the number of workers.
+    """
+    jobs = [(int(seed), arm, settings) for seed in seeds for arm in POLICIES]
+    workers = min(len(jobs), workers or os.cpu_count() or 1)
+    bar = tqdm(total=len(jobs), desc="A/B runs", unit="run", disable=not progress)
+    runs = []
+    with bar:
+        if workers == 1:
+            for job in jobs:
+                runs.append(_run(job))
+                bar.update()
+        else:
+            with ProcessPoolExecutor(workers) as pool:
+                for future in as_completed([pool.submit(_run, job) for job in jobs]):
+                    runs.append(future.result())
+                    bar.update()
+    return sorted(runs, key=lambda run: (run.seed, run.arm))

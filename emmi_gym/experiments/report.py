@@ -1,0 +1,245 @@
+"""What an A/B experiment wrote: per-run measures, intervals over seeds, CSVs, a markdown table and
+the figures in the layout of the paper's Fig. 6 (c)-(e) maps and (f)-(h) metrics."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from .ab import POLICIES, ABRun
+
+#: Measures plotted per RBPF update, as the paper's Fig. 6 (f), (g), (h).
+FIGURE_MEASURES = (("emmi", "EMMI (bits/cell)"), ("pose_entropy", "pose entropy (nats)"),
+                   ("joint_entropy", "joint entropy (nats)"))
+#: Per-run columns of the summary, with their labels.
+SUMMARY_COLUMNS = {
+    "emmi_change": "EMMI change after the decision (bits/cell)",
+    "pose_entropy_change": "pose entropy change (nats)",
+    "joint_entropy_change": "joint entropy change (nats)",
+    "resamplings": "resamplings after the decision",
+    "map_accuracy": "final map accuracy",
+    "new_area_accuracy_on_arrival": "new-area map accuracy on arriving there",
+    "new_area_accuracy": "new-area map accuracy at the end",
+    "ate": "final ATE (m)",
+    "coverage": "final coverage",
+    "completed": "reached both goals",
+}
+CONFIDENCE = 0.95
+
+
+def horizons(runs: list[ABRun]) -> dict[int, int | None]:
+    """Per seed, the number of updates A took from the decision to close the loop (its first goal).
+
+    The paper compares the two actions step by step (Fig. 6 (f)-(h)); the changes of a
+    seed's A and B runs are both read this many updates after the decision, where A's loop
+    closes. None where A never got there.
+    """
+    return {run.seed: (None if run.first_goal is None else run.first_goal - run.decision)
+            for run in runs if run.arm == "A"}
+
+
+def run_measures(run: ABRun, horizon: int | None) -> dict:
+    """One run's row of the summary: changes over ``horizon`` updates after the decision, final scores."""
+    row = {"seed": run.seed, "arm": run.arm, "policy": run.policy, "decision_update": run.decision,
+           "first_goal_update": run.first_goal, "second_goal_update": run.second_goal, "horizon": horizon}
+    at_decision = run.rows[run.decision]
+    if horizon is None:
+        later = None
+    else:
+        later = run.rows[min(run.decision + horizon, len(run.rows) - 1)]
+    for measure in ("emmi", "pose_entropy", "joint_entropy"):
+        row[f"{measure}_change"] = math.nan if later is None else later[measure] - at_decision[measure]
+    window = run.rows[run.decision + 1: run.decision + 1 + (horizon or 0)]
+    row["resamplings"] = sum(bool(r["resampled"]) for r in window) if horizon is not None else math.nan
+    row.update({k: run.final[k] for k in ("map_accuracy", "new_area_accuracy_on_arrival", "new_area_accuracy",
+                                           "ate", "coverage", "sim_steps", "decisions", "collisions")})
+    row["completed"] = float(run.final["completed"])
+    return row
+
+
+def summary_rows(runs: list[ABRun]) -> list[dict]:
+    """:func:`run_measures` of every run, with each seed's horizon."""
+    horizon = horizons(runs)
+    return [run_measures(run, horizon.get(run.seed)) for run in runs]
+
+
+def mean_interval(values, confidence: float = CONFIDENCE) -> tuple[float, float, float, int]:
+    """Mean and Student-t confidence interval of the finite values: (mean, low, high, n)."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return math.nan, math.nan, math.nan, 0
+    mean = float(x.mean())
+    if x.size < 2 or np.all(x == x[0]):
+        return mean, mean, mean, int(x.size)
+    low, high = stats.t.interval(confidence, x.size - 1, loc=mean, scale=stats.sem(x))
+    return mean, float(low), float(high), int(x.size)
+
+
+def paired_differences(rows: list[dict], column: str) -> np.ndarray:
+    """A minus B of ``column``, per seed that has both runs (NaN where either is missing)."""
+    by_seed: dict[int, dict[str, float]] = {}
+    for row in rows:
+        by_seed.setdefault(row["seed"], {})[row["arm"]] = row[column]
+    return np.array([d["A"] - d["B"] for _, d in sorted(by_seed.items()) if "A" in d and "B" in d], dtype=float)
+
+
+def summary_table(rows: list[dict]) -> dict[str, dict[str, tuple]]:
+    """Per column: the mean interval under A, under B, and of the paired difference A - B
+    (with, for the difference, how many seeds had A above B)."""
+    table = {}
+    for column in SUMMARY_COLUMNS:
+        entry = {arm: mean_interval([r[column] for r in rows if r["arm"] == arm]) for arm in POLICIES}
+        diff = paired_differences(rows, column)
+        finite = diff[np.isfinite(diff)]
+        entry["A - B"] = mean_interval(finite) + (int(np.sum(finite > 0)),)
+        table[column] = entry
+    return table
+
+
+def _cell(interval: tuple, digits: int, signed: bool) -> str:
+    mean, low, high, n = interval[:4]
+    if n == 0:
+        return "n/a"
+    sign = "+" if signed else ""
+    return f"{mean:{sign}.{digits}f} [{low:{sign}.{digits}f}, {high:{sign}.{digits}f}]"
+
+
+def markdown_summary(rows: list[dict], settings_text: str) -> str:
+    """The summary as a markdown table: mean and 95% interval per arm and of the paired difference."""
+    table = summary_table(rows)
+    seeds = sorted({r["seed"] for r in rows})
+    lines = [f"A/B experiment: {settings_text}; {len(seeds)} seeds; mean [95% t-interval] over seeds.",
+             "A = close_loop_first (close the loop, then the new area); B = explore_first.",
+             "Changes are read the same number of RBPF updates after the decision for A and B: "
+             "the updates A needed to close the loop (the paper's Fig. 6 compares the two step by step).",
+             "", "| measure | A | B | A - B (paired) | A > B |", "| --- | --- | --- | --- | --- |"]
+    for column, label in SUMMARY_COLUMNS.items():
+        entry = table[column]
+        digits = {"joint_entropy_change": 0, "pose_entropy_change": 1, "resamplings": 1}.get(column, 3)
+        change = column.endswith("_change")
+        diff = entry["A - B"]
+        count = f"{diff[4]}/{diff[3]}" if diff[3] else "n/a"
+        lines.append(f"| {label} | {_cell(entry['A'], digits, change)} | {_cell(entry['B'], digits, change)} | "
+                     f"{_cell(diff, digits, True)} | {count} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def update_rows(runs: list[ABRun]) -> list[dict]:
+    """Every RBPF update of every run, with its seed, arm and index."""
+    return [dict(seed=run.seed, arm=run.arm, update=i, **row) for run in runs for i, row in enumerate(run.rows)]
+
+
+def _aligned(runs: list[ABRun], measure: str, decision: int) -> np.ndarray:
+    """(runs, T) of ``measure`` with each run shifted so that its decision falls on ``decision``; NaN-padded."""
+    shifted = [np.array([r[measure] for r in run.rows], dtype=float)[max(run.decision - decision, 0):]
+               for run in runs]
+    pads = [max(decision - run.decision, 0) for run in runs]
+    length = max(p + s.size for p, s in zip(pads, shifted))
+    out = np.full((len(runs), length), np.nan)
+    for k, (pad, series) in enumerate(zip(pads, shifted)):
+        out[k, pad:pad + series.size] = series
+    return out
+
+
+def plot_metrics(runs: list[ABRun], path: Path) -> None:
+    """The paper's Fig. 6 (f)-(h): EMMI, pose entropy and joint entropy per RBPF update, A solid and B
+    dashed, mean over seeds with a band of one standard deviation, the decision point (and the
+    median update at which A closed the loop) marked; drawn while two thirds of the runs last."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    decision = int(round(np.mean([run.decision for run in runs])))
+    closures = [h for h in horizons(runs).values() if h is not None]
+    fig, axes = plt.subplots(len(FIGURE_MEASURES), 1, figsize=(8, 8.5), sharex=True)
+    for ax, (measure, label) in zip(axes, FIGURE_MEASURES):
+        for arm, style, colour in (("A", "-", "tab:blue"), ("B", "--", "tab:red")):
+            values = _aligned([run for run in runs if run.arm == arm], measure, decision)
+            present = np.isfinite(values)
+            steps = np.flatnonzero(present.sum(axis=0) * 3 >= 2 * values.shape[0])  # two thirds of the seeds
+            values = values[:, steps]
+            mean = np.nanmean(values, axis=0)
+            spread = np.nanstd(values, axis=0)
+            ax.plot(steps, mean, style, color=colour, lw=1.6, label=f"{arm}: {POLICIES[arm]}")
+            ax.fill_between(steps, mean - spread, mean + spread, color=colour, alpha=0.2, lw=0)
+        ax.axvline(decision, color="k", lw=0.8, ls=":")
+        if closures:
+            ax.axvline(decision + float(np.median(closures)), color="tab:blue", lw=0.8, ls=":")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].annotate("decision", (decision, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12),
+                     textcoords="offset points", fontsize=8)
+    if closures:
+        axes[0].annotate("A: loop closed", (decision + float(np.median(closures)), 1.0),
+                         xycoords=("data", "axes fraction"), xytext=(3, -12), textcoords="offset points",
+                         fontsize=8, color="tab:blue")
+    axes[0].legend(loc="lower left", fontsize=8)
+    axes[-1].set_xlabel("RBPF update (step)")
+    n_seeds = len({run.seed for run in runs})
+    fig.suptitle(f"A (close the loop first) vs B (explore first): mean ± 1 s.d. over {n_seeds} seeds",
+                 fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_maps(runs: list[ABRun], seed: int, walls: np.ndarray, path: Path) -> None:
+    """The paper's Fig. 6 (c)-(e) for one seed: the expected map at the decision point, after A closed
+    the loop and after B entered the new area, with the best particle's path (orange) over the true
+    walls (cyan)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    by_arm = {run.arm: run for run in runs if run.seed == seed}
+    panels = [("(c) decision point", by_arm["A"], "decision"),
+              ("(d) after A: loop closed", by_arm["A"], "first_goal"),
+              ("(e) after B: new area entered", by_arm["B"], "first_goal")]
+    panels = [(title, run, event) for title, run, event in panels if event in run.maps]
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.4))
+    for ax, (title, run, event) in zip(np.atleast_1d(axes), panels):
+        ax.imshow(run.maps[event], cmap="gray_r", vmin=0, vmax=1, origin="lower", extent=run.extent,
+                  interpolation="nearest")
+        for ax_, ay, bx, by, _ in walls:
+            ax.plot([ax_, bx], [ay, by], color="tab:cyan", lw=0.5, alpha=0.7)
+        path_xy = run.paths[event]
+        ax.plot(path_xy[:, 0], path_xy[:, 1], color="tab:orange", lw=0.9)
+        measures = run.at(event)
+        ax.set_title(f"{title}\nseed {run.seed}, update {getattr(run, event)}: EMMI {measures['emmi']:.3f} bits/cell",
+                     fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_report(runs: list[ABRun], out_dir, walls: np.ndarray, settings_text: str,
+                 map_seed: int | None = None) -> dict[str, Path]:
+    """Write the CSVs, the markdown summary and both figures into ``out_dir``; returns their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = summary_rows(runs)
+    files = {"updates": out / "ab_updates.csv", "runs": out / "ab_runs.csv", "summary": out / "ab_summary.md",
+             "metrics_figure": out / "ab_fig6_metrics.png", "maps_figure": out / "ab_fig6_maps.png"}
+    write_csv(files["updates"], update_rows(runs))
+    write_csv(files["runs"], rows)
+    files["summary"].write_text(markdown_summary(rows, settings_text))
+    plot_metrics(runs, files["metrics_figure"])
+    plot_maps(runs, runs[0].seed if map_seed is None else map_seed, walls, files["maps_figure"])
+    return files

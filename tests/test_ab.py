@@ -1,0 +1,122 @@
+"""The paper's A/B experiment (Fig. 6) on a small configuration, and the demo command.
+
+The full run (`emmi-gym ab --seeds 20`, in the README) is reproduced here on its first
+eight seeds (same settings, about 40 s on two cores): EMMI must rise after closing the
+loop and not after entering the new area, with a paired 95% interval above zero; the
+pose entropy must fall under A and not under B; the joint entropy must not prefer A;
+and the new area must be mapped better when A came first.
+"""
+
+import csv
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from emmi_gym.cli import main
+from emmi_gym.experiments import ABSettings, run_episode
+from emmi_gym.experiments.report import SUMMARY_COLUMNS, mean_interval
+
+SEEDS = 8
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ab")
+    assert main(["ab", "--seeds", str(SEEDS), "--out", str(out), "--workers", "2", "--quiet"]) == 0
+    with open(out / "ab_runs.csv") as f:
+        runs = list(csv.DictReader(f))
+    return out, runs
+
+
+def column(runs, name, arm):
+    return np.array([float(r[name]) for r in runs if r["arm"] == arm])
+
+
+def paired(runs, name):
+    return column(runs, name, "A") - column(runs, name, "B")
+
+
+def test_every_run_reaches_both_goals_in_order(experiment):
+    _, runs = experiment
+    assert len(runs) == 2 * SEEDS
+    for r in runs:
+        assert float(r["completed"]) == 1.0
+        assert int(r["decision_update"]) < int(r["first_goal_update"]) < int(r["second_goal_update"])
+
+
+def test_emmi_rises_after_closing_the_loop_and_not_after_exploring(experiment):
+    _, runs = experiment
+    a, b = column(runs, "emmi_change", "A"), column(runs, "emmi_change", "B")
+    mean, low, _, n = mean_interval(a - b)
+    assert n == SEEDS and low > 0, (a, b)       # the paired 95% interval of A - B excludes zero
+    assert np.mean(a) > 0.03, a                  # the loop closure raises EMMI (full run: +0.061)
+    assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: -0.003)
+
+
+def test_pose_entropy_falls_under_a_and_not_under_b(experiment):
+    _, runs = experiment
+    a, b = column(runs, "pose_entropy_change", "A"), column(runs, "pose_entropy_change", "B")
+    assert np.mean(a) < 0 < np.mean(b), (a, b)
+
+
+def test_joint_entropy_does_not_prefer_closing_the_loop(experiment):
+    """The paper's point: the joint entropy falls when exploring, whatever the pose certainty."""
+    _, runs = experiment
+    assert np.mean(column(runs, "joint_entropy_change", "B")) <= np.mean(column(runs, "joint_entropy_change", "A"))
+
+
+def test_the_new_area_is_mapped_better_after_the_loop_was_closed(experiment):
+    """Its expected map when the robot arrives there (full run: +0.020 [-0.002, +0.042] over 20 seeds)."""
+    _, runs = experiment
+    diff = paired(runs, "new_area_accuracy_on_arrival")
+    assert np.mean(diff) > 0, diff
+
+
+def test_outputs_are_complete(experiment):
+    out, runs = experiment
+    for name in ("ab_updates.csv", "ab_runs.csv", "ab_summary.md", "ab_fig6_metrics.png", "ab_fig6_maps.png"):
+        assert (out / name).stat().st_size > 0
+    assert imread(out / "ab_fig6_metrics.png").shape[0] > 400
+    assert imread(out / "ab_fig6_maps.png").shape[1] > 1000
+    summary = (out / "ab_summary.md").read_text()
+    for label in SUMMARY_COLUMNS.values():
+        assert f"| {label} |" in summary
+    mean, low, high, n = mean_interval(paired(runs, "emmi_change"))
+    assert f"{mean:+.3f} [{low:+.3f}, {high:+.3f}]" in summary and n == SEEDS
+    with open(out / "ab_updates.csv") as f:
+        header = next(csv.reader(f))
+    assert {"seed", "arm", "update", "phase", "emmi", "pose_entropy", "joint_entropy", "neff"} <= set(header)
+
+
+def test_a_worker_run_is_the_run_of_this_process(experiment):
+    out, _ = experiment
+    with open(out / "ab_updates.csv") as f:
+        logged = [r for r in csv.DictReader(f) if r["seed"] == "1" and r["arm"] == "B"]
+    run = run_episode(1, "B", ABSettings())
+    assert len(run.rows) == len(logged)
+    assert all(float(a["emmi"]) == b["emmi"] and float(a["joint_entropy"]) == b["joint_entropy"]
+               for a, b in zip(logged, run.rows))
+
+
+def test_demo_writes_the_figures_and_prints_the_summary(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "| EMMI change after the decision (bits/cell) |" in printed
+    assert "A above B on" in printed
+    for name in ("ab_summary.md", "ab_fig6_metrics.png", "ab_fig6_maps.png"):
+        assert f"wrote {tmp_path / name}" in printed and (tmp_path / name).stat().st_size > 0
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["ab", "--seeds", "1"], "--seeds must be at least 2"),
+    (["ab", "--particles", "0"], "--particles must be at least 1"),
+    (["ab", "--world", "atlantis"], "atlantis"),
+    (["ab", "--world", "office"], "cannot host the A/B experiment: it lacks place 'decision'"),
+    (["demo", "--workers", "0"], "--workers must be at least 1"),
+])
+def test_bad_input_is_a_clear_error(argv, message, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv + ["--out", "unused"])
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
