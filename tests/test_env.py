@@ -315,7 +315,7 @@ def test_a_wall_seen_on_the_way_makes_the_robot_replan():
 def test_loop_closing_target_is_reached_without_pushing_into_walls():
     """From the decision point the start lies behind a corner the map has barely seen: the first plan
     cuts through unknown space, and only replanning on the way keeps the robot off the walls."""
-    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env = gym.make("emmi_gym/LoopCorridor-v0")  # 15 particles: with 5 the start is not always offered
     env.reset(seed=1)
     core = env.unwrapped
     start = core.world.place("target_a")

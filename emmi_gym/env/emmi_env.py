@@ -13,8 +13,16 @@ from ..control import WaypointFollower
 from ..evaluation import absolute_trajectory_error, map_accuracy
 from ..grid import GridGeometry
 from ..slam import RBPF, RBPFConfig
-from ..world import (GeneratorConfig, LaserConfig, OdometryNoise, RobotConfig, Simulator, generate_world,
-                     load_world, rasterise)
+from ..world import (
+    GeneratorConfig,
+    LaserConfig,
+    OdometryNoise,
+    RobotConfig,
+    Simulator,
+    generate_world,
+    load_world,
+    rasterise,
+)
 from . import observation as obs
 from .candidates import Target, candidate_slots
 from .config import EnvConfig, make_config
