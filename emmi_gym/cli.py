@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 
 def _cmd_metrics(args: argparse.Namespace) -> int:
@@ -108,6 +109,77 @@ def _cmd_ab(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_train(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from .training.config import load_agent_config
+    from .training.train import train
+
+    config = load_agent_config(args.config)
+    if args.timesteps is not None:
+        if args.timesteps < 1:
+            raise ValueError(f"--timesteps must be at least 1, got {args.timesteps}")
+        config = replace(config, total_timesteps=args.timesteps)
+    if args.seed is not None:
+        config = replace(config, seed=args.seed)
+    out = args.out or f"runs/{Path(args.config).stem}_seed{config.seed}"
+    print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
+          f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
+          f"{out}/tb)")
+    result = train(config, out, resume=args.resume, progress=not args.quiet)
+    if result.interrupted:
+        print(f"\ninterrupted at {result.timesteps} steps: saved {result.model_path}; continue with --resume")
+        return 130
+    print(f"trained {result.timesteps} steps in {result.wall_seconds:.0f} s: wrote {result.model_path} and "
+          f"{Path(out) / 'config.yaml'}")
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from .training.episodes import summarise
+    from .training.evaluate import evaluate_model, format_table
+
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
+    rows = evaluate_model(args.model, args.episodes, args.seed, args.video)
+    print(format_table(rows))
+    print("\nmean over episodes:")
+    print(format_table([summarise(rows)]))
+    if args.video:
+        print(f"videos in {args.video}")
+    return 0
+
+
+def _cmd_benchmark(args: argparse.Namespace) -> int:
+    import time
+
+    from .env.config import REWARDS
+    from .training.benchmark import run_benchmark, write_benchmark
+    from .training.config import load_agent_config
+
+    bad = sorted(set(args.rewards) - set(REWARDS))
+    if bad:
+        raise ValueError(f"--rewards: unknown {bad}; choose from {list(REWARDS)}")
+    for name in ("seeds", "timesteps", "episodes"):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name} must be at least 1, got {getattr(args, name)}")
+    config = load_agent_config(args.config)
+    started = time.perf_counter()
+    results = run_benchmark(config, args.rewards, range(args.seeds), args.timesteps, args.episodes, args.baselines,
+                            args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet)
+    elapsed = time.perf_counter() - started
+    header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
+              f"{args.timesteps} training steps per agent, {args.seeds} seed(s) per reward, {args.episodes} held-out "
+              f"evaluation episodes each; {elapsed / 60:.1f} min wall time "
+              f"({'Ray' if args.ray else 'local processes'}). Mean [95% t-interval]: over agents for trained "
+              f"variants, over episodes for scripted ones.")
+    files = write_benchmark(results, args.out, header)
+    print(files["summary"].read_text())
+    for path in files.values():
+        print(f"wrote {path}")
+    return 0
+
+
 def _add_ab_options(parser: argparse.ArgumentParser, seeds: int, particles: int, out: str) -> None:
     parser.add_argument("--seeds", type=int, default=seeds, help=f"number of seeds (default {seeds})")
     parser.add_argument("--first-seed", type=int, default=0)
@@ -131,6 +203,38 @@ def build_parser() -> argparse.ArgumentParser:
     ab = sub.add_parser("ab", help="the paper's A/B loop-closure experiment (Fig. 6): close the loop first "
                                    "(A) vs explore first (B), over seeds, with figures, CSVs and intervals")
     _add_ab_options(ab, seeds=20, particles=15, out="ab_out")
+
+    tr = sub.add_parser("train", help="train an SB3 agent from a configuration in agents/")
+    tr.add_argument("config", help="agent configuration (.yaml), e.g. agents/ppo_emmi.yaml")
+    tr.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
+    tr.add_argument("--seed", type=int, default=None, help="override seed")
+    tr.add_argument("--out", default=None, help="run folder (default runs/<config>_seed<seed>)")
+    tr.add_argument("--resume", action="store_true", help="continue from the run folder's latest checkpoint")
+    tr.add_argument("--quiet", action="store_true", help="no progress bar")
+    tr.set_defaults(func=_cmd_train)
+
+    ev = sub.add_parser("evaluate", help="run a trained model on held-out episodes: return and ground-truth metrics")
+    ev.add_argument("model", help="model .zip written by 'emmi-gym train' (config.yaml beside it)")
+    ev.add_argument("--episodes", type=int, default=10)
+    ev.add_argument("--seed", type=int, default=200_000, help="first episode seed (default 200000: held out)")
+    ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
+    ev.set_defaults(func=_cmd_evaluate)
+
+    bench = sub.add_parser("benchmark", help="train agents per reward variant and compare them, and the scripted "
+                                             "baselines, under the same ground-truth metrics")
+    bench.add_argument("--config", default="agents/ppo_emmi.yaml",
+                       help="the agent configuration whose reward is varied (default agents/ppo_emmi.yaml)")
+    bench.add_argument("--rewards", nargs="+", default=["emmi", "pose_entropy", "joint_entropy", "coverage"])
+    bench.add_argument("--seeds", type=int, default=3, help="training seeds per reward variant")
+    bench.add_argument("--timesteps", type=int, default=6000, help="training steps per agent")
+    bench.add_argument("--episodes", type=int, default=10, help="held-out evaluation episodes per agent")
+    bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
+    bench.add_argument("--workers", type=int, default=None, help="local worker processes (default one per core)")
+    bench.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
+                       help="run on Ray: a cluster address, or none for a local instance")
+    bench.add_argument("--out", default="benchmark_out")
+    bench.add_argument("--quiet", action="store_true", help="no progress bar")
+    bench.set_defaults(func=_cmd_benchmark)
 
     metrics = sub.add_parser("metrics", help="show EMMI vs the joint entropy on the paper's Fig. 5 example")
     metrics.set_defaults(func=_cmd_metrics)
@@ -164,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, KeyError, FileNotFoundError) as exc:  # bad input: a message, not a traceback
+    except (ValueError, KeyError, FileNotFoundError, FileExistsError) as exc:  # bad input: a message, not a traceback
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         parser.exit(2, f"emmi-gym {args.command}: error: {message}\n")
 

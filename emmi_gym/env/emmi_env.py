@@ -327,6 +327,11 @@ class EmmiEnv(gym.Env):
         return self.slam.pose_estimate(self.sim.odometry_pose)
 
     @property
+    def true_path(self) -> np.ndarray:
+        """(T, 3) true poses at every simulator step of the episode (ground truth, for evaluation only)."""
+        return np.array(self._true_path)
+
+    @property
     def expected_map(self) -> np.ndarray:
         """A copy of the expected map now (eq. 6): occupancy probabilities on the grid of ``geometry``."""
         return self._expected.copy()

@@ -95,6 +95,27 @@ def new_area_mask(observed_at_decision: np.ndarray, truth_grid: np.ndarray, geom
     return grown & unknown_then & (truth_grid != UNKNOWN)
 
 
+def new_area_now(core) -> np.ndarray:
+    """:func:`new_area_mask` for an environment (unwrapped) as it is now, e.g. at the decision point."""
+    return new_area_mask(observed_cells(core.expected_map), core.truth.grid, core.geometry,
+                         core.world.place(NEW_AREA_PLACE))
+
+
+def closed_loop_first(true_xy: np.ndarray, world, geometry, new_area: np.ndarray) -> bool | None:
+    """Whether a true path came back to the loop's start (``target_a``, within the policies'
+    ``GOAL_RADIUS``) before it entered ``new_area``; None if it did neither."""
+    from ..policies import GOAL_RADIUS
+
+    goal = world.place("target_a")
+    back = np.flatnonzero(np.hypot(true_xy[:, 0] - goal.x, true_xy[:, 1] - goal.y) <= GOAL_RADIUS)
+    rows, cols = geometry.cell_of(true_xy[:, 0], true_xy[:, 1])
+    inside = geometry.inside(rows, cols)
+    entered = np.flatnonzero(inside)[new_area[rows[inside], cols[inside]]]
+    if back.size == 0 and entered.size == 0:
+        return None
+    return bool(back.size and (entered.size == 0 or back[0] < entered[0]))
+
+
 def check_world(world) -> None:
     """Raise a ValueError naming what ``world`` lacks for the experiment: the places decision,
     target_a (back at the start: closes the loop), target_b (in the unexplored area) and a
@@ -120,8 +141,7 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
     events = {"decision": len(rows) - 1}
     maps = {"decision": core.expected_map}
     paths = {"decision": core.slam.paths[core.slam.best].copy()}
-    new_area = new_area_mask(observed_cells(maps["decision"]), core.truth.grid, core.geometry,
-                             core.world.place(NEW_AREA_PLACE))
+    new_area = new_area_now(core)
     new_area_truth = np.where(new_area, core.truth.grid, UNKNOWN)
     new_area_on_arrival = float("nan")
     truncated = False

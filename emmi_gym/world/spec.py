@@ -6,17 +6,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import FieldError
+
 #: Radius of the simulated robot's round body, metres (a small indoor platform).
 ROBOT_RADIUS = 0.2
 
 
-class WorldFileError(ValueError):
+class WorldFileError(FieldError):
     """A world file (or dict) is malformed; says which file, which field, what was expected."""
-
-    def __init__(self, source: str, field_path: str, expected: str, got=None):
-        self.source, self.field, self.expected, self.got = source, field_path, expected, got
-        got_text = "" if got is None else f", got {got!r}"
-        super().__init__(f"{source}: field '{field_path}': expected {expected}{got_text}")
 
 
 @dataclass(frozen=True)

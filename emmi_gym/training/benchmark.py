@@ -1,0 +1,255 @@
+"""The reward benchmark: for each reward variant, train an agent per seed, then evaluate every agent
+and the scripted baselines on the *same* held-out episodes under the *same* ground-truth metrics.
+
+Runs are independent jobs: by default they go to local worker processes; with a Ray address
+(or "local" for a fresh local Ray instance) they go to a Ray cluster instead. Ray is an
+optional extra, imported only on that path.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..experiments.report import mean_interval, write_csv
+from .config import AgentConfig
+from .episodes import PolicyActor, run_episodes
+from .evaluate import EVALUATION_SEED, evaluate_model
+from .train import make_env, train
+
+#: Ground-truth columns of the benchmark table, with their labels.
+TABLE_COLUMNS = {
+    "map_accuracy": "map accuracy",
+    "ate": "ATE (m)",
+    "coverage": "coverage",
+    "reached_target": "reached the coverage target",
+    "sim_steps_to_target": "simulator steps to the target",
+    "closed_loop_first": "closed the loop before the new area",
+}
+
+
+@dataclass(frozen=True)
+class Job:
+    """One benchmark run: train ``config`` with reward ``variant`` (kind "agent"), or run the
+    scripted policy ``variant`` (kind "baseline"); then evaluate on the held-out episodes."""
+
+    kind: str
+    variant: str
+    seed: int
+    config: AgentConfig
+    run_dir: Path
+    episodes: int
+    episode_seed: int
+
+
+def run_job(job: Job) -> dict:
+    """Do one job (in whatever process runs it); its episode rows, learning curve and wall time."""
+    import torch
+
+    torch.set_num_threads(1)  # the jobs are the parallelism
+    started = time.perf_counter()
+    curve = []
+    if job.kind == "agent":
+        result = train(job.config, job.run_dir, progress=False)
+        rows = evaluate_model(result.model_path, job.episodes, job.episode_seed)
+        evaluations = job.run_dir / "eval_ground_truth.csv"
+        if evaluations.exists():  # none when training stopped before the first periodic evaluation
+            with open(evaluations) as f:
+                curve = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    else:
+        from ..policies import make_policy
+
+        env = make_env(job.config.env_id, job.config.env_kwargs)
+        rows = run_episodes(env, PolicyActor(make_policy(job.variant)), range(job.episode_seed,
+                                                                             job.episode_seed + job.episodes))
+        env.close()
+    for row in rows:
+        row.update(kind=job.kind, variant=job.variant, seed=job.seed)
+    return {"job": job, "rows": rows, "curve": curve, "wall_seconds": time.perf_counter() - started}
+
+
+def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir) -> list[Job]:
+    """The agents (one per reward and seed, trained with single-env ``dummy`` vectorisation: the jobs
+    run in parallel already) and one job per scripted baseline."""
+    out = Path(out_dir)
+    if baselines and _action_mode(config) != "waypoint":
+        raise ValueError(f"the scripted baselines {list(baselines)} choose waypoint targets, but {config.env_id} "
+                         f"acts in {_action_mode(config)} mode: pass --baselines with no names")
+    jobs = []
+    for reward in rewards:
+        for seed in seeds:
+            agent = replace(config, env_kwargs=dict(config.env_kwargs, reward=reward), seed=int(seed),
+                            total_timesteps=int(timesteps), vec_env="dummy")
+            jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
+                            EVALUATION_SEED))
+    for name in baselines:
+        jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, EVALUATION_SEED))
+    return jobs
+
+
+def _action_mode(config: AgentConfig) -> str:
+    import gymnasium as gym
+
+    import emmi_gym  # noqa: F401  (registers the ids)
+
+    return dict(gym.spec(config.env_id).kwargs, **config.env_kwargs).get("action_mode", "waypoint")
+
+
+def _local(jobs: list[Job], workers: int, progress: bool) -> list[dict]:
+    import multiprocessing as mp
+
+    results = []
+    with tqdm(total=len(jobs), desc="benchmark runs", unit="run", disable=not progress) as bar:
+        if workers == 1:
+            for job in jobs:
+                results.append(run_job(job))
+                bar.update()
+            return results
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+            for future in as_completed([pool.submit(run_job, job) for job in jobs]):
+                results.append(future.result())
+                bar.update()
+    return results
+
+
+def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("--ray needs Ray: pip install 'emmi-gym[ray]'") from None
+    started_here = not ray.is_initialized()
+    if started_here:
+        ray.init(address=None if address == "local" else address, include_dashboard=False,
+                 logging_level="ERROR", log_to_driver=False)
+    try:
+        remote = ray.remote(num_cpus=1)(run_job)
+        pending = [remote.remote(job) for job in jobs]
+        results = []
+        with tqdm(total=len(jobs), desc="benchmark runs (Ray)", unit="run", disable=not progress) as bar:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                results.extend(ray.get(done))
+                bar.update(len(done))
+        return results
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
+                  workers: int | None = None, ray_address: str | None = None, progress: bool = True) -> list[dict]:
+    """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed."""
+    jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir)
+    if ray_address is not None:
+        results = _ray(jobs, ray_address, progress)
+    else:
+        results = _local(jobs, min(len(jobs), workers or os.cpu_count() or 1), progress)
+    return sorted(results, key=lambda r: (r["job"].kind, r["job"].variant, r["job"].seed))
+
+
+def summary(results: list[dict]) -> dict[str, dict[str, tuple]]:
+    """Per variant and column: mean [95% interval]. For trained variants each agent's episode mean is
+    one sample (the interval is over training seeds); for a baseline, each episode is."""
+    table = {}
+    for variant in dict.fromkeys(r["job"].variant for r in results):
+        own = [r for r in results if r["job"].variant == variant]
+        entry = {}
+        for column in TABLE_COLUMNS:
+            if own[0]["job"].kind == "agent":
+                samples = [_nanmean([row.get(column, math.nan) for row in r["rows"]]) for r in own]
+            else:
+                samples = [row.get(column, math.nan) for r in own for row in r["rows"]]
+            entry[column] = mean_interval(samples)
+        entry["agents"] = len(own) if own[0]["job"].kind == "agent" else 0
+        table[variant] = entry
+    return table
+
+
+def _nanmean(values) -> float:
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.mean(finite)) if finite else math.nan
+
+
+def markdown(results: list[dict], header: str) -> str:
+    table = summary(results)
+    lines = [header, "", "| variant | " + " | ".join(TABLE_COLUMNS.values()) + " |",
+             "| --- |" + " --- |" * len(TABLE_COLUMNS)]
+    for variant, entry in table.items():
+        name = f"{variant} ({entry['agents']} agents)" if entry["agents"] else f"{variant} (scripted)"
+        cells = []
+        for column in TABLE_COLUMNS:
+            mean, low, high, n = entry[column]
+            digits = 0 if column == "sim_steps_to_target" else 3
+            cells.append("n/a" if n == 0 else f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(results: list[dict], out: Path) -> dict[str, Path]:
+    """Learning curves (the periodic evaluation's ground-truth means against timesteps, mean over seeds,
+    per reward variant) and the final metrics with their intervals."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = {"curves": out / "learning_curves.png", "final": out / "final_metrics.png"}
+    measures = ("coverage", "map_accuracy", "ate")
+    fig, axes = plt.subplots(1, len(measures), figsize=(12, 3.4))
+    for variant in dict.fromkeys(r["job"].variant for r in results if r["job"].kind == "agent"):
+        curves = [r["curve"] for r in results if r["job"].variant == variant and r["curve"]]
+        if not curves:
+            continue
+        length = min(len(c) for c in curves)
+        steps = [c["timesteps"] for c in curves[0][:length]]
+        for ax, measure in zip(axes, measures):
+            values = np.array([[row[measure] for row in c[:length]] for c in curves])
+            ax.plot(steps, values.mean(axis=0), marker="o", ms=3, label=variant)
+    for ax, measure in zip(axes, measures):
+        ax.set_xlabel("training timesteps")
+        ax.set_title(f"held-out {measure}", fontsize=9)
+        ax.grid(alpha=0.3)
+    if axes[0].lines:
+        axes[0].legend(fontsize=8)
+    else:
+        axes[0].text(0.5, 0.5, "no periodic evaluation yet\n(training shorter than eval.freq)", ha="center",
+                     va="center", transform=axes[0].transAxes, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(files["curves"], dpi=110)
+    plt.close(fig)
+
+    table = summary(results)
+    columns = ("map_accuracy", "ate", "coverage", "closed_loop_first")
+    fig, axes = plt.subplots(1, len(columns), figsize=(12, 3.4))
+    names = list(table)
+    for ax, column in zip(axes, columns):
+        stats_ = [table[v][column] for v in names]
+        means = [s[0] for s in stats_]
+        errors = np.array([[s[0] - s[1] for s in stats_], [s[2] - s[0] for s in stats_]])
+        ax.bar(range(len(names)), means, yerr=np.nan_to_num(errors), capsize=3, color="tab:blue", alpha=0.7)
+        ax.set_xticks(range(len(names)), names, rotation=35, ha="right", fontsize=8)
+        ax.set_title(TABLE_COLUMNS[column], fontsize=9)
+        ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    fig.savefig(files["final"], dpi=110)
+    plt.close(fig)
+    return files
+
+
+def write_benchmark(results: list[dict], out_dir, header: str) -> dict[str, Path]:
+    """``benchmark_episodes.csv`` (every evaluation episode), ``benchmark_summary.md`` and the plots."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"episodes": out / "benchmark_episodes.csv", "summary": out / "benchmark_summary.md"}
+    write_csv(files["episodes"], [row for r in results for row in r["rows"]])
+    files["summary"].write_text(markdown(results, header))
+    files.update(plot(results, out))
+    return files

@@ -1,0 +1,86 @@
+"""Evaluation episodes under the ground-truth metrics, for trained agents and scripted policies alike."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..experiments.ab import closed_loop_first, new_area_now
+
+#: What an episode's last ``info`` says against the ground truth (and the certainty it ended with).
+GROUND_TRUTH = ("coverage", "map_accuracy", "ate", "emmi", "pose_entropy", "joint_entropy", "collisions", "sim_steps")
+
+
+class ModelActor:
+    """Acts with a trained SB3 model (deterministically; MaskablePPO gets the env's action masks)."""
+
+    def __init__(self, model, deterministic: bool = True):
+        self.model, self.deterministic = model, deterministic
+        self.masked = type(model).__name__ == "MaskablePPO"
+        self.name = type(model).__name__
+
+    def reset(self, seed: int) -> None:
+        pass
+
+    def __call__(self, env, observation):
+        extra = {"action_masks": env.unwrapped.action_masks()} if self.masked else {}
+        action, _ = self.model.predict(observation, deterministic=self.deterministic, **extra)
+        return action
+
+
+class PolicyActor:
+    """Acts with a scripted policy of :mod:`emmi_gym.policies` (reseeded every episode)."""
+
+    def __init__(self, policy):
+        self.policy, self.name = policy, policy.name
+
+    def reset(self, seed: int) -> None:
+        self.policy.reset(seed)
+
+    def __call__(self, env, observation):
+        return self.policy(env)
+
+
+def hosts_loop_experiment(core) -> bool:
+    """Whether episodes of this env start at a decision point between closing a loop and a new area."""
+    places = core.world.places
+    return core.config.start_at == "decision" and {"target_a", "target_b"} <= set(places)
+
+
+def run_episode(env, actor, seed: int) -> dict:
+    """One episode with ``actor``; its return, steps and ground-truth measures (see :data:`GROUND_TRUTH`).
+
+    ``sim_steps_to_target`` is the simulator steps until the coverage target (NaN if it was
+    not reached); where the episode starts at a loop's decision point, ``closed_loop_first``
+    says whether the robot went back to the loop's start before entering the new area (1.0),
+    entered the new area first (0.0), or neither (NaN).
+    """
+    observation, _ = env.reset(seed=seed)
+    actor.reset(seed)
+    core = env.unwrapped
+    new_area = new_area_now(core) if hosts_loop_experiment(core) else None
+    total, steps, terminated, truncated = 0.0, 0, False, False
+    while not (terminated or truncated):
+        observation, reward, terminated, truncated, info = env.step(actor(env, observation))
+        total += float(reward)
+        steps += 1
+    row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in GROUND_TRUTH},
+           "reached_target": float(terminated),
+           "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan}
+    if new_area is not None:
+        order = closed_loop_first(core.true_path[:, :2], core.world, core.geometry, new_area)
+        row["closed_loop_first"] = math.nan if order is None else float(order)
+    return row
+
+
+def run_episodes(env, actor, seeds) -> list[dict]:
+    return [run_episode(env, actor, int(seed)) for seed in seeds]
+
+
+def summarise(rows: list[dict]) -> dict:
+    """Mean of every numeric column over episodes (NaN-aware)."""
+    keys = [k for k in rows[0] if k != "episode_seed"]
+    return {k: float(np.nanmean([r.get(k, math.nan) for r in rows])) if any(np.isfinite(r.get(k, math.nan))
+                                                                         for r in rows) else math.nan
+            for k in keys}

@@ -1,0 +1,186 @@
+"""Training from agent configurations: every algorithm trains, saves, resumes and evaluates; bad
+configurations are clear errors; the benchmark runs locally and on a local Ray instance."""
+
+import csv
+
+import numpy as np
+import pytest
+import yaml
+
+from emmi_gym.cli import main
+from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
+from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
+from emmi_gym.training.episodes import GROUND_TRUTH
+from emmi_gym.training.evaluate import evaluate_model
+from emmi_gym.training.train import latest_checkpoint, train
+
+#: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.
+FAST_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 150}
+SMALL_NETS = {"policy_kwargs": {"net_arch": [16]}}
+ALGORITHMS = {
+    "PPO": ({}, {"n_steps": 32, "batch_size": 32, "n_epochs": 1}),
+    "A2C": ({}, {"n_steps": 8}),
+    "SAC": ({}, {"buffer_size": 500, "learning_starts": 32, "batch_size": 16}),
+    "MaskablePPO": ({"velocity_actions": "discrete"}, {"n_steps": 32, "batch_size": 32, "n_epochs": 1}),
+    "DQN": ({"velocity_actions": "discrete"}, {"buffer_size": 500, "learning_starts": 32, "batch_size": 16,
+                                               "target_update_interval": 50}),
+}
+
+
+def config_dict(algorithm, env_extra=None, hyper=None, timesteps=96, env_id="emmi_gym/ExploreVelocity-v0", **extra):
+    return {"env": {"id": env_id, "kwargs": dict(FAST_ENV, **(env_extra or {}))}, "algorithm": algorithm,
+            "policy": "MultiInputPolicy", "hyperparameters": dict(SMALL_NETS, **(hyper or {})), "n_envs": 1,
+            "vec_env": "dummy", "total_timesteps": timesteps, "seed": 3,
+            "eval": {"freq": 64, "episodes": 1, "seed": 500}, "checkpoint_freq": 48, **extra}
+
+
+@pytest.mark.parametrize("algorithm", list(ALGORITHMS))
+def test_each_algorithm_trains_saves_resumes_and_evaluates(algorithm, tmp_path):
+    env_extra, hyper = ALGORITHMS[algorithm]
+    first = train(parse_agent_config(config_dict(algorithm, env_extra, hyper)), tmp_path, progress=False)
+    assert first.model_path.exists() and first.timesteps >= 96 and not first.interrupted
+    assert (tmp_path / "config.yaml").exists() and latest_checkpoint(tmp_path).name == "model_96_steps.zip"
+    with open(tmp_path / "eval_ground_truth.csv") as f:
+        curve = list(csv.DictReader(f))
+    assert [int(r["timesteps"]) for r in curve] == [64] and set(GROUND_TRUTH) <= set(curve[0])
+    assert list((tmp_path / "tb").iterdir())                         # TensorBoard logs
+
+    more = parse_agent_config(config_dict(algorithm, env_extra, hyper, timesteps=160))
+    resumed = train(more, tmp_path, resume=True, progress=False)
+    assert resumed.timesteps >= 160 > first.timesteps
+
+    rows = evaluate_model(resumed.model_path, episodes=2)
+    assert len(rows) == 2 and all(0.0 <= r["coverage"] <= 1.0 and np.isfinite(r["return"]) for r in rows)
+    assert set(GROUND_TRUTH) <= set(rows[0])
+
+
+def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
+    data = config_dict("MaskablePPO", {"max_decisions": 3}, {"n_steps": 8, "batch_size": 8, "n_epochs": 1},
+                       timesteps=8, env_id="emmi_gym/LoopCorridor-v0")
+    data["env"]["kwargs"] = {"particles": 3, "max_decisions": 3}
+    data["eval"] = {"freq": 100, "episodes": 1, "seed": 500}
+    result = train(parse_agent_config(data), tmp_path, progress=False)
+    rows = evaluate_model(result.model_path, episodes=1, video_dir=tmp_path / "videos")
+    assert rows[0]["env_steps"] <= 3 and "closed_loop_first" in rows[0]
+    videos = list((tmp_path / "videos").glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 0
+
+
+def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
+    from stable_baselines3.common import callbacks
+
+    original = callbacks.CheckpointCallback._on_step
+
+    def interrupt(self):
+        if self.num_timesteps >= 40:
+            raise KeyboardInterrupt
+        return original(self)
+
+    monkeypatch.setattr(callbacks.CheckpointCallback, "_on_step", interrupt)
+    config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
+    stopped = train(config, tmp_path, progress=False)
+    assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path)
+    assert not (tmp_path / "model.zip").exists()
+    monkeypatch.setattr(callbacks.CheckpointCallback, "_on_step", original)
+    finished = train(config, tmp_path, resume=True, progress=False)
+    assert finished.timesteps >= 96 and (tmp_path / "model.zip").exists()
+
+
+def test_shipped_configurations_load_and_variants_differ_only_in_reward():
+    emmi = load_agent_config("agents/ppo_emmi.yaml")
+    assert emmi.algorithm == "MaskablePPO" and emmi.env_id == "emmi_gym/LoopCorridor-v0"
+    for reward in ("pose_entropy", "joint_entropy", "coverage"):
+        variant = load_agent_config(f"agents/ppo_{reward}.yaml")
+        assert variant.env_kwargs == dict(emmi.env_kwargs, reward=reward)
+        assert variant.hyperparameters == emmi.hyperparameters and variant.total_timesteps == emmi.total_timesteps
+    assert load_agent_config("agents/dqn_emmi.yaml").algorithm == "DQN"
+    assert load_agent_config("agents/sac_velocity_emmi.yaml").algorithm == "SAC"
+    assert "buffer_size" not in load_agent_config("agents/ppo_velocity_emmi.yaml").hyperparameters
+
+
+@pytest.mark.parametrize("change, field, expected", [
+    ({"algorithm": "TRPO"}, "algorithm", "one of ['PPO'"),
+    ({"learning_rat": 1}, "learning_rat", "one of the fields"),
+    ({"env": {"id": "CartPole-v1"}}, "env.id", "emmi_gym/LoopCorridor-v0"),
+    ({"env": {"id": "emmi_gym/Explore-v0", "kwargs": {"rewad": "emmi"}}}, "env.kwargs", "valid options are"),
+    ({"hyperparameters": {"n_stepz": 4}}, "hyperparameters.n_stepz", "a keyword of PPO"),
+    ({"n_envs": 0}, "n_envs", "an integer >= 1"),
+    ({"vec_env": "ray"}, "vec_env", "one of ['subproc', 'dummy']"),
+    ({"eval": {"freq": -1}}, "eval.freq", "an integer >= 1"),
+])
+def test_bad_configuration_names_file_field_and_expectation(change, field, expected, tmp_path):
+    data = dict(config_dict("PPO"), **change)
+    path = tmp_path / "agent.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(AgentConfigError) as error:
+        load_agent_config(path)
+    assert error.value.field == field and expected in str(error.value) and str(path) in str(error.value)
+
+
+def test_base_files_merge_and_cycles_are_refused(tmp_path):
+    (tmp_path / "a.yaml").write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 32})))
+    (tmp_path / "b.yaml").write_text("base: a.yaml\nenv: {kwargs: {reward: coverage}}\nhyperparameters: {n_steps: 8}\n")
+    merged = load_agent_config(tmp_path / "b.yaml")
+    assert merged.env_kwargs["reward"] == "coverage" and merged.env_kwargs["particles"] == 3
+    assert merged.hyperparameters == {"n_steps": 8}                    # replaced whole, not merged
+    (tmp_path / "c.yaml").write_text("base: d.yaml\n")
+    (tmp_path / "d.yaml").write_text("base: c.yaml\n")
+    with pytest.raises(AgentConfigError, match="cycle"):
+        load_agent_config(tmp_path / "c.yaml")
+
+
+def test_cli_errors_are_messages(tmp_path, capsys):
+    for argv, message in ((["train", str(tmp_path / "none.yaml")], "does not exist"),
+                          (["evaluate", str(tmp_path / "none.zip")], "no model at"),
+                          (["benchmark", "--rewards", "fun"], "unknown ['fun']")):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code == 2 and message in capsys.readouterr().err
+
+
+def _tiny_benchmark(tmp_path, **kwargs):
+    config = parse_agent_config(config_dict("PPO", {"max_decisions": 4}, {"n_steps": 16, "batch_size": 16,
+                                                                          "n_epochs": 1},
+                                            env_id="emmi_gym/Explore-v0"))
+    results = run_benchmark(config, ["emmi", "coverage"], range(1), 16, 1, ["frontier"], tmp_path, progress=False,
+                            **kwargs)
+    files = write_benchmark(results, tmp_path, "tiny")
+    summary = files["summary"].read_text()
+    assert "| emmi (1 agents) |" in summary and "| frontier (scripted) |" in summary
+    assert all(label in summary for label in TABLE_COLUMNS.values())
+    with open(files["episodes"]) as f:
+        rows = list(csv.DictReader(f))
+    assert sorted({r["variant"] for r in rows}) == ["coverage", "emmi", "frontier"]
+    assert files["curves"].stat().st_size > 0 and files["final"].stat().st_size > 0
+    return sorted(rows, key=lambda r: (r["variant"], r["seed"]))
+
+
+def test_benchmark_refuses_waypoint_baselines_in_velocity_mode(tmp_path):
+    config = parse_agent_config(config_dict("PPO"))
+    with pytest.raises(ValueError, match="choose waypoint targets"):
+        run_benchmark(config, ["emmi"], range(1), 16, 1, ["frontier"], tmp_path, progress=False)
+
+
+def test_benchmark_in_local_worker_processes(tmp_path):
+    _tiny_benchmark(tmp_path, workers=2)
+
+
+def test_benchmark_on_a_local_ray_instance(tmp_path):
+    pytest.importorskip("ray")
+    local = _tiny_benchmark(tmp_path / "local", workers=1)
+    on_ray = _tiny_benchmark(tmp_path / "ray", ray_address="local")
+    assert [r["coverage"] for r in on_ray] == [r["coverage"] for r in local]  # the same runs, wherever they ran
+
+
+def test_train_and_evaluate_commands(tmp_path, capsys):
+    path = tmp_path / "agent.yaml"
+    path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1})))
+    out = tmp_path / "run"
+    assert main(["train", str(path), "--timesteps", "32", "--seed", "5", "--out", str(out), "--quiet"]) == 0
+    assert yaml.safe_load((out / "config.yaml").read_text())["seed"] == 5
+    with pytest.raises(SystemExit):                                  # a second run would overwrite the model
+        main(["train", str(path), "--out", str(out), "--quiet"])
+    assert "already holds a trained model" in capsys.readouterr().err
+    assert main(["evaluate", str(out / "model.zip"), "--episodes", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "map_accuracy" in printed and "mean over episodes" in printed and printed.count("\n") >= 6
