@@ -73,11 +73,6 @@ class ABRun:
         index = len(self.rows) - 1 if event == "end" else getattr(self, event)
         return None if index is None else self.rows[index]
 
-    def change(self, measure: str, until: str = "first_goal") -> float:
-        """How much ``measure`` changed from the decision point to ``until`` (NaN if never reached)."""
-        end = self.at(until)
-        return float("nan") if end is None else end[measure] - self.at("decision")[measure]
-
 
 def new_area_mask(observed_at_decision: np.ndarray, truth_grid: np.ndarray, geometry, place,
                   margin: float = 0.3) -> np.ndarray:
@@ -164,7 +159,6 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
         "new_area_cells": int(new_area.sum()), "sim_steps": info["sim_steps"], "decisions": core.decisions,
         "collisions": info["collisions"], "completed": policy.done,
     }
-    maps["end"] = expected
     extent = core.geometry.extent
     env.close()
     return ABRun(seed, arm, POLICIES[arm], rows, events["decision"], events.get("first_goal"),
