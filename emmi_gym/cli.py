@@ -168,11 +168,14 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     results = run_benchmark(config, args.rewards, range(args.seeds), args.timesteps, args.episodes, args.baselines,
                             args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet)
     elapsed = time.perf_counter() - started
+    reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
               f"{args.timesteps} training steps per agent, {args.seeds} seed(s) per reward, {args.episodes} held-out "
               f"evaluation episodes each; {elapsed / 60:.1f} min wall time "
-              f"({'Ray' if args.ray else 'local processes'}). Mean [95% t-interval]: over agents for trained "
-              f"variants, over episodes for scripted ones.")
+              f"({'Ray' if args.ray else 'local processes'}"
+              f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}). "
+              f"Mean [95% t-interval]: over agents for trained variants (one agent: its mean), over episodes "
+              f"for scripted ones.")
     files = write_benchmark(results, args.out, header)
     print(files["summary"].read_text())
     for path in files.values():

@@ -184,3 +184,23 @@ def test_train_and_evaluate_commands(tmp_path, capsys):
     assert main(["evaluate", str(out / "model.zip"), "--episodes", "2"]) == 0
     printed = capsys.readouterr().out
     assert "map_accuracy" in printed and "mean over episodes" in printed and printed.count("\n") >= 6
+
+
+def test_loop_order_counts_only_the_path_after_the_decision_point():
+    """The reset drives from the start; coming back there (A) or entering the new area (B) first is
+    read from the episode's own path."""
+    import gymnasium as gym
+
+    from emmi_gym.experiments.ab import closed_loop_first, new_area_now
+
+    env = gym.make("emmi_gym/LoopCorridor-v0", particles=3)
+    env.reset(seed=0)
+    core = env.unwrapped
+    new_area = new_area_now(core)
+    world = core.world
+    line = lambda *points: np.concatenate([np.linspace(a, b, 50) for a, b in zip(points[:-1], points[1:])])  # noqa: E731
+    decision, start, b = world.place("decision").xy, world.place("target_a").xy, world.place("target_b").xy
+    assert closed_loop_first(line(decision, (1, 1), start, (1, 1), (1, 9), (-8, 9)), world, core.geometry, new_area)
+    assert not closed_loop_first(line(decision, (1, 9), (-8, 9), (-8, 1), b), world, core.geometry, new_area)
+    assert closed_loop_first(line(decision, (1, 12)), world, core.geometry, new_area) is None
+    assert closed_loop_first(core.true_path[:, :2], world, core.geometry, new_area)  # the reset's drive began there

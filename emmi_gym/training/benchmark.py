@@ -3,7 +3,8 @@ and the scripted baselines on the *same* held-out episodes under the *same* grou
 
 Runs are independent jobs: by default they go to local worker processes; with a Ray address
 (or "local" for a fresh local Ray instance) they go to a Ray cluster instead. Ray is an
-optional extra, imported only on that path.
+optional extra, imported only on that path. A run folder that already holds the finished
+model of the same configuration is evaluated, not trained again.
 """
 
 from __future__ import annotations
@@ -58,8 +59,11 @@ def run_job(job: Job) -> dict:
     started = time.perf_counter()
     curve = []
     if job.kind == "agent":
-        result = train(job.config, job.run_dir, progress=False)
-        rows = evaluate_model(result.model_path, job.episodes, job.episode_seed)
+        model_path = job.run_dir / "model.zip"
+        trained = not _already_trained(job)
+        if trained:
+            model_path = train(job.config, job.run_dir, progress=False).model_path
+        rows = evaluate_model(model_path, job.episodes, job.episode_seed)
         evaluations = job.run_dir / "eval_ground_truth.csv"
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
             with open(evaluations) as f:
@@ -67,13 +71,24 @@ def run_job(job: Job) -> dict:
     else:
         from ..policies import make_policy
 
+        trained = False
         env = make_env(job.config.env_id, job.config.env_kwargs)
         rows = run_episodes(env, PolicyActor(make_policy(job.variant)), range(job.episode_seed,
                                                                              job.episode_seed + job.episodes))
         env.close()
     for row in rows:
         row.update(kind=job.kind, variant=job.variant, seed=job.seed)
-    return {"job": job, "rows": rows, "curve": curve, "wall_seconds": time.perf_counter() - started}
+    return {"job": job, "rows": rows, "curve": curve, "trained": trained, "wall_seconds": time.perf_counter() - started}
+
+
+def _already_trained(job: Job) -> bool:
+    """Whether the job's run folder holds a finished model of the same configuration (a benchmark run
+    again into the same folder, e.g. after an interruption, evaluates it instead of training again)."""
+    from .train import load_run_config
+
+    if not (job.run_dir / "model.zip").exists():
+        return False
+    return load_run_config(job.run_dir / "model.zip").as_yaml_dict() == job.config.as_yaml_dict()
 
 
 def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir) -> list[Job]:
@@ -188,7 +203,12 @@ def markdown(results: list[dict], header: str) -> str:
         for column in TABLE_COLUMNS:
             mean, low, high, n = entry[column]
             digits = 0 if column == "sim_steps_to_target" else 3
-            cells.append("n/a" if n == 0 else f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]")
+            if n == 0:
+                cells.append("n/a")
+            elif n == 1:  # one agent: no interval
+                cells.append(f"{mean:.{digits}f}")
+            else:
+                cells.append(f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

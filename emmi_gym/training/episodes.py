@@ -60,6 +60,7 @@ def run_episode(env, actor, seed: int) -> dict:
     actor.reset(seed)
     core = env.unwrapped
     new_area = new_area_now(core) if hosts_loop_experiment(core) else None
+    first_pose = len(core.true_path)  # the reset's drive to the decision point began at the start: not counted
     total, steps, terminated, truncated = 0.0, 0, False, False
     while not (terminated or truncated):
         observation, reward, terminated, truncated, info = env.step(actor(env, observation))
@@ -69,7 +70,7 @@ def run_episode(env, actor, seed: int) -> dict:
            "reached_target": float(terminated),
            "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan}
     if new_area is not None:
-        order = closed_loop_first(core.true_path[:, :2], core.world, core.geometry, new_area)
+        order = closed_loop_first(core.true_path[first_pose:, :2], core.world, core.geometry, new_area)
         row["closed_loop_first"] = math.nan if order is None else float(order)
     return row
 
