@@ -10,17 +10,15 @@ entropy eq. 12, ...) and ends when its policy has reached both goals (or after
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
 import gymnasium as gym
 import numpy as np
 from scipy import ndimage
-from tqdm.auto import tqdm
 
 from ..certainty import observed_cells
 from ..evaluation import map_accuracy
+from ..parallel import run_in_processes
 from ..policies import make_policy
 from ..world.ground_truth import FREE, UNKNOWN
 
@@ -177,17 +175,5 @@ def run_ab(seeds, settings: ABSettings = ABSettings(), *, workers: int | None = 
     whatever the number of workers.
     """
     jobs = [(int(seed), arm, settings) for seed in seeds for arm in POLICIES]
-    workers = min(len(jobs), workers or os.cpu_count() or 1)
-    bar = tqdm(total=len(jobs), desc="A/B runs", unit="run", disable=not progress)
-    runs = []
-    with bar:
-        if workers == 1:
-            for job in jobs:
-                runs.append(_run(job))
-                bar.update()
-        else:
-            with ProcessPoolExecutor(workers) as pool:
-                for future in as_completed([pool.submit(_run, job) for job in jobs]):
-                    runs.append(future.result())
-                    bar.update()
+    runs = run_in_processes(_run, jobs, workers=workers, desc="A/B runs", progress=progress)
     return sorted(runs, key=lambda run: (run.seed, run.arm))

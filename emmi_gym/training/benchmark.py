@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -21,8 +19,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..experiments.report import mean_interval, write_csv
+from ..parallel import run_in_processes
 from .config import AgentConfig
-from .episodes import PolicyActor, run_episodes
+from .episodes import PolicyActor, nanmean, run_episodes
 from .evaluate import EVALUATION_SEED, evaluate_model
 from .train import make_env, train
 
@@ -118,23 +117,6 @@ def _action_mode(config: AgentConfig) -> str:
     return dict(gym.spec(config.env_id).kwargs, **config.env_kwargs).get("action_mode", "waypoint")
 
 
-def _local(jobs: list[Job], workers: int, progress: bool) -> list[dict]:
-    import multiprocessing as mp
-
-    results = []
-    with tqdm(total=len(jobs), desc="benchmark runs", unit="run", disable=not progress) as bar:
-        if workers == 1:
-            for job in jobs:
-                results.append(run_job(job))
-                bar.update()
-            return results
-        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-            for future in as_completed([pool.submit(run_job, job) for job in jobs]):
-                results.append(future.result())
-                bar.update()
-    return results
-
-
 def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
     try:
         import ray
@@ -166,7 +148,8 @@ def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes:
     if ray_address is not None:
         results = _ray(jobs, ray_address, progress)
     else:
-        results = _local(jobs, min(len(jobs), workers or os.cpu_count() or 1), progress)
+        results = run_in_processes(run_job, jobs, workers=workers, desc="benchmark runs", progress=progress,
+                                   start_method="spawn")
     return sorted(results, key=lambda r: (r["job"].kind, r["job"].variant, r["job"].seed))
 
 
@@ -179,18 +162,13 @@ def summary(results: list[dict]) -> dict[str, dict[str, tuple]]:
         entry = {}
         for column in TABLE_COLUMNS:
             if own[0]["job"].kind == "agent":
-                samples = [_nanmean([row.get(column, math.nan) for row in r["rows"]]) for r in own]
+                samples = [nanmean([row.get(column, math.nan) for row in r["rows"]]) for r in own]
             else:
                 samples = [row.get(column, math.nan) for r in own for row in r["rows"]]
             entry[column] = mean_interval(samples)
         entry["agents"] = len(own) if own[0]["job"].kind == "agent" else 0
         table[variant] = entry
     return table
-
-
-def _nanmean(values) -> float:
-    finite = [v for v in values if np.isfinite(v)]
-    return float(np.mean(finite)) if finite else math.nan
 
 
 def markdown(results: list[dict], header: str) -> str:

@@ -79,9 +79,12 @@ def run_episodes(env, actor, seeds) -> list[dict]:
     return [run_episode(env, actor, int(seed)) for seed in seeds]
 
 
+def nanmean(values) -> float:
+    """Mean of the finite values; NaN when there is none."""
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.mean(finite)) if finite else math.nan
+
+
 def summarise(rows: list[dict]) -> dict:
-    """Mean of every numeric column over episodes (NaN-aware)."""
-    keys = [k for k in rows[0] if k != "episode_seed"]
-    return {k: float(np.nanmean([r.get(k, math.nan) for r in rows])) if any(np.isfinite(r.get(k, math.nan))
-                                                                         for r in rows) else math.nan
-            for k in keys}
+    """:func:`nanmean` of every column over episodes."""
+    return {k: nanmean([r.get(k, math.nan) for r in rows]) for k in rows[0] if k != "episode_seed"}
