@@ -2,7 +2,9 @@
 
 A file names the environment (id and ``gym.make`` keywords), the algorithm, its policy and
 hyperparameters, the number of environments, the training budget, the seed and the
-evaluation and checkpoint schedules. ``base: other.yaml`` (relative to the file) starts
+evaluation and checkpoint schedules. ``discount_unit: N`` makes ``gamma`` apply per N simulator
+steps of robot time instead of per decision (semi-Markov discounting of macro-actions, see
+:mod:`emmi_gym.training.semi_markov`; PPO, A2C and MaskablePPO). ``base: other.yaml`` (relative to the file) starts
 from another configuration and overrides what the file gives (dicts are merged key by key,
 but ``hyperparameters`` are replaced whole: they belong to one algorithm), so the reward
 variants of one agent are one line each. Every mistake raises
@@ -23,8 +25,8 @@ from ..errors import FieldError
 ALGORITHMS = ("PPO", "A2C", "MaskablePPO", "DQN", "SAC")
 POLICIES = ("MultiInputPolicy", "CnnPolicy", "MlpPolicy")
 VEC_ENVS = ("subproc", "dummy")
-_KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "n_envs", "vec_env", "total_timesteps", "seed",
-         "eval", "checkpoint_freq")
+_KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "discount_unit", "n_envs", "vec_env",
+         "total_timesteps", "seed", "eval", "checkpoint_freq")
 
 
 class AgentConfigError(FieldError):
@@ -61,6 +63,7 @@ class AgentConfig:
     algorithm: str
     policy: str = "MultiInputPolicy"
     hyperparameters: dict = field(default_factory=dict)
+    discount_unit: int | None = None
     n_envs: int = 2
     vec_env: str = "subproc"
     total_timesteps: int = 20_000
@@ -153,6 +156,18 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
     for name in hyper:
         if name not in accepted:
             raise AgentConfigError(source, f"hyperparameters.{name}", f"a keyword of {algorithm}: one of {accepted}")
+    for name in ("rollout_buffer_class", "rollout_buffer_kwargs"):
+        if name in hyper and data.get("discount_unit") is not None:
+            raise AgentConfigError(source, f"hyperparameters.{name}", "not given with discount_unit (which sets the "
+                                   "rollout buffer)")
+    discount_unit = data.get("discount_unit")
+    if discount_unit is not None:
+        from .semi_markov import SUPPORTED
+
+        _integer(source, "discount_unit", discount_unit, 1)
+        if algorithm not in SUPPORTED:
+            raise AgentConfigError(source, "discount_unit", f"absent for {algorithm} (semi-Markov discounting is "
+                                   f"implemented for {list(SUPPORTED)})", discount_unit)
     vec_env = data.get("vec_env", "subproc")
     if vec_env not in VEC_ENVS:
         raise AgentConfigError(source, "vec_env", f"one of {list(VEC_ENVS)}", vec_env)
@@ -166,7 +181,7 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
         seed=_integer(source, "eval.seed", schedule.get("seed", defaults.seed), 0))
     return AgentConfig(
         env_id=env["id"], env_kwargs=dict(kwargs), algorithm=algorithm, policy=policy, hyperparameters=dict(hyper),
-        n_envs=_integer(source, "n_envs", data.get("n_envs", 2), 1), vec_env=vec_env,
+        discount_unit=discount_unit, n_envs=_integer(source, "n_envs", data.get("n_envs", 2), 1), vec_env=vec_env,
         total_timesteps=_integer(source, "total_timesteps", data.get("total_timesteps", 20_000), 1),
         seed=_integer(source, "seed", data.get("seed", 0), 0), eval=eval_schedule,
         checkpoint_freq=_integer(source, "checkpoint_freq", data.get("checkpoint_freq", 5000), 1), source=source)

@@ -22,6 +22,7 @@ import yaml
 
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, parse_agent_config
+from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
 OFF_POLICY = ("DQN", "SAC")
@@ -97,8 +98,12 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         if config.algorithm in OFF_POLICY and buffer.exists():
             model.load_replay_buffer(buffer)
     else:
+        hyperparameters = copy.deepcopy(config.hyperparameters)  # SB3 adds to policy_kwargs in place
+        if config.discount_unit is not None:
+            hyperparameters["rollout_buffer_class"] = rollout_buffer_class(
+                config.algorithm, isinstance(env.observation_space, gym.spaces.Dict))
         model = cls(config.policy, env, seed=config.seed, tensorboard_log=str(run_dir / "tb"), verbose=verbose,
-                    **copy.deepcopy(config.hyperparameters))  # SB3 adds to policy_kwargs in place
+                    **hyperparameters)
     per_env = max(1, config.n_envs)
     evaluation = eval_callback_class(config.algorithm)(
         eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
@@ -106,11 +111,14 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv")
     checkpointing = CheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoints), name_prefix="model",
                                        save_replay_buffer=config.algorithm in OFF_POLICY)
+    callbacks = [checkpointing, evaluation]
+    if config.discount_unit is not None:
+        callbacks.append(SemiMarkovDiscounts(config.discount_unit))
     remaining = max(config.total_timesteps - model.num_timesteps, 0)
     started = time.perf_counter()
     interrupted = False
     try:
-        model.learn(remaining, callback=CallbackList([checkpointing, evaluation]), progress_bar=progress,
+        model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
                     reset_num_timesteps=start is None, tb_log_name="run")
         model_path = run_dir / "model.zip"
         model.save(model_path)
