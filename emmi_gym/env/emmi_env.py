@@ -246,13 +246,7 @@ class EmmiEnv(gym.Env):
         if it cannot be reached any more). Clear on the current expected map plus the current scan's
         echoes within ``SCAN_LAYER_RANGE`` (a costmap's obstacle layer: walls seen only at grazing angles
         are faint in the map but plain in the scan)."""
-        expected = self.slam.expected_map()
-        points = safety.scan_points(self._scan_now(), self._angles, self.laser_config.max_range, SCAN_LAYER_RANGE)
-        cos, sin = np.cos(pose[2]), np.sin(pose[2])
-        rows, cols = self.geometry.cell_of(pose[0] + cos * points[:, 0] - sin * points[:, 1],
-                                           pose[1] + sin * points[:, 0] + cos * points[:, 1])
-        inside = self.geometry.inside(rows, cols)
-        expected[rows[inside], cols[inside]] = np.maximum(expected[rows[inside], cols[inside]], SCAN_LAYER_P)
+        expected = self._with_scan_layer(self.slam.expected_map(), pose)
         radius = self.robot_config.radius
         if not path_obstructed(expected, self.geometry, [tuple(pose[:2])] + follower.remaining, radius,
                                skip=radius + KEEP_OUT_MARGIN):
@@ -261,6 +255,17 @@ class EmmiEnv(gym.Env):
         if not np.isfinite(costs.cost_to(target.x, target.y)):
             return None
         return self._follower(costs.path_to(target.x, target.y))
+
+    def _with_scan_layer(self, expected: np.ndarray, pose) -> np.ndarray:
+        """``expected`` (changed in place) with the current scan's echoes within ``SCAN_LAYER_RANGE``
+        marked as obstacles (``SCAN_LAYER_P``) at ``pose``: a costmap's obstacle layer over the map."""
+        points = safety.scan_points(self._scan_now(), self._angles, self.laser_config.max_range, SCAN_LAYER_RANGE)
+        cos, sin = np.cos(pose[2]), np.sin(pose[2])
+        rows, cols = self.geometry.cell_of(pose[0] + cos * points[:, 0] - sin * points[:, 1],
+                                           pose[1] + sin * points[:, 0] + cos * points[:, 1])
+        inside = self.geometry.inside(rows, cols)
+        expected[rows[inside], cols[inside]] = np.maximum(expected[rows[inside], cols[inside]], SCAN_LAYER_P)
+        return expected
 
     def _sim_step(self, v: float, omega: float) -> bool:
         result = self.sim.step(v, omega)
@@ -300,9 +305,12 @@ class EmmiEnv(gym.Env):
         self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
                                               align=False)
         if self.config.action_mode == "waypoint":
+            # targets are planned on the expected map plus the scan's obstacle layer, as the drive to them
+            # is replanned: a wall the particles blur but the laser sees hides no frontier behind it
             pose = self.slam.pose_estimate(self.sim.odometry_pose)
-            self._costs = travel_costs(self._expected, self.geometry, pose[:2], self.robot_config.radius)
-            self._slots = candidate_slots(self._expected, self.slam.paths[self.slam.best], self._costs,
+            planning_map = self._with_scan_layer(self._expected.copy(), pose)
+            self._costs = travel_costs(planning_map, self.geometry, pose[:2], self.robot_config.radius)
+            self._slots = candidate_slots(planning_map, self.slam.paths[self.slam.best], self._costs,
                                           self.config.n_frontiers, self.config.n_revisits, self._blocked)
 
     def _take_snapshot(self) -> Snapshot:
