@@ -264,6 +264,27 @@ def test_pose_entropy_grows_with_spread():
     assert C.pose_entropy(base * 0.1, w) - C.pose_entropy(base * 0.05, w) == pytest.approx(3 * math.log(2), abs=0.2)
 
 
+def test_loop_displacement_spread():
+    """The spread of x_T - x_k over particles: a shared offset or a shared drift does not count."""
+    rng = np.random.default_rng(6)
+    common = np.cumsum(rng.normal(size=(1, 30, 3)), axis=1)
+    paths = np.repeat(common, 400, axis=0) + np.array([5.0, -2.0, 0.0])  # all particles agree
+    assert C.loop_displacement_spread(paths, np.ones(400), since=3) == pytest.approx(0.0, abs=1e-9)
+    drifted = paths.copy()
+    drifted[:, 10:, :2] += rng.normal(scale=0.3, size=(400, 1, 2))  # the particles split after update 10
+    assert C.loop_displacement_spread(drifted, np.ones(400), since=12) == pytest.approx(0.0, abs=1e-9)
+    assert C.loop_displacement_spread(drifted, np.ones(400), since=3) == pytest.approx(0.3 * math.sqrt(2), rel=0.1)
+    # weights: one particle with all the weight leaves no spread; log weights agree with linear ones
+    w = np.zeros(400)
+    w[7] = 1.0
+    assert C.loop_displacement_spread(drifted, w, since=3) == pytest.approx(0.0, abs=1e-9)
+    logw = rng.normal(size=400)
+    assert C.loop_displacement_spread(drifted, logw, since=3, log_weights=True) == pytest.approx(
+        C.loop_displacement_spread(drifted, np.exp(logw), since=3))
+    with pytest.raises(ValueError, match="since=30 is not an update index"):
+        C.loop_displacement_spread(drifted, np.ones(400), since=30)
+
+
 @pytest.mark.parametrize("bad, message", [
     (dict(weights=[1.0, -1.0]), "non-negative"),
     (dict(weights=[0.0, 0.0]), "sum to zero"),

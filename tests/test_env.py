@@ -206,7 +206,7 @@ def test_bad_render_mode_and_reset_option():
 def test_decision_point_offers_the_papers_choice():
     """At the decision point one slot closes the loop (target A, the start) and one enters the new area (B)."""
     env = gym.make("emmi_gym/LoopCorridor-v0")
-    env.reset(seed=0)
+    obs, _ = env.reset(seed=0)
     world, targets = env.unwrapped.world, env.unwrapped.targets
     a, b = world.place("target_a"), world.place("target_b")
     revisits = [t for t in targets if t is not None and t.kind == "revisit"]
@@ -219,6 +219,22 @@ def test_decision_point_offers_the_papers_choice():
                for t in frontiers)
     mask = env.unwrapped.action_masks()
     assert mask.tolist() == [t is not None for t in targets]
+    # the observation describes every slot: the policy can tell the loop-closing target from the frontiers
+    rows = obs["targets"]
+    assert rows.shape == (8, 8) and rows[:, 0].tolist() == mask.tolist()
+    assert rows[:, 1].tolist() == [float(t is not None and t.kind == "revisit") for t in targets]
+    assert not rows[~mask].any()
+    xmin, ymin, xmax, ymax = world.bounds
+    side = max(xmax - xmin, ymax - ymin)
+    for row, t in zip(rows, targets):
+        if t is None:
+            continue
+        np.testing.assert_allclose(row[2:5] * [side, side, 2 * side],
+                                   [t.x - pose[0], t.y - pose[1], t.travel_cost], atol=1e-4)
+        if t.kind == "revisit":  # a loop the particles disagree about: 0.2-0.5 m at the decision point
+            assert row[6] >= 1 / 3 - 1e-6 and 0.2 < row[7] * 0.5 < 1.0
+        else:
+            assert row[5] > 0 and row[6] == row[7] == 0
 
 
 def episode_return(env, policy) -> tuple[float, dict, bool]:

@@ -17,7 +17,7 @@ from .information import (
     mean_information_of_code_counts,
     observed_cells,
 )
-from .pose import DEFAULT_DET_FLOOR, joint_entropy, path_entropy, pose_entropy
+from .pose import DEFAULT_DET_FLOOR, joint_entropy, loop_displacement_spread, path_entropy, pose_entropy
 from .weights import effective_sample_size, normalize_weights, weight_entropy
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "map_information",
     "mean_information",
     "mean_information_of_code_counts",
+    "loop_displacement_spread",
     "normalize_weights",
     "observed_cells",
     "path_entropy",

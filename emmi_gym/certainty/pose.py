@@ -70,3 +70,22 @@ def joint_entropy(paths, grids, weights, *, logodds: bool = False, lut=None, log
     w = normalize_weights(weights, log=log_weights)
     maps = ParticleGrids.from_arrays(grids, w, logodds=logodds, lut=lut)
     return joint_entropy_of_parts(path_entropy(paths, w, det_floor=det_floor), maps.entropies_bits(), w)
+
+
+def loop_displacement_spread(paths, weights, since: int, *, log_weights: bool = False) -> float:
+    """How uncertain the filter is about where the robot is relative to its pose at update ``since`` (m).
+
+    The square root of the trace of the weighted covariance, over particles, of
+    ``x_T - x_since`` (positions, each particle in its own path): what revisiting that
+    pose and closing the loop can resolve. Each particle is sure of its own map, so the
+    spread shows in EMMI (eq. 9) only once the loop is closed: the robot back in view of
+    a place that the particles put in different relative positions.
+    """
+    p = _check_poses(paths, 3, "paths")
+    w = normalize_weights(weights, log=log_weights)
+    if not -p.shape[1] <= since < p.shape[1]:
+        raise ValueError(f"since={since} is not an update index of paths with {p.shape[1]} updates")
+    displacement = p[:, -1, :2] - p[:, since, :2]
+    centred = displacement - w @ displacement
+    return float(math.sqrt(max(float(w @ np.sum(centred ** 2, axis=1)), 0.0)))
+

@@ -31,6 +31,7 @@ class Target:
     y: float
     travel_cost: float
     gain: float  # frontier: its length in cells; revisit: path length / travel cost
+    path_index: int | None = None  # revisit: the update index of the estimated path it revisits
 
     @property
     def xy(self) -> tuple[float, float]:
@@ -84,7 +85,8 @@ def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
             continue
         cost = costs.cost_to(path[k, 0], path[k, 1])
         if MIN_TRAVEL <= cost < np.inf and behind[k] >= LOOP_RATIO * cost:
-            candidates.append(Target("revisit", float(path[k, 0]), float(path[k, 1]), cost, behind[k] / max(cost, 0.5)))
+            candidates.append(Target("revisit", float(path[k, 0]), float(path[k, 1]), cost,
+                                     behind[k] / max(cost, 0.5), int(k)))
     candidates.sort(key=lambda t: (-t.gain, t.travel_cost))
     chosen: list[Target] = []
     for t in candidates:

@@ -93,7 +93,8 @@ class EmmiEnv(gym.Env):
             self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         else:
             self.action_space = spaces.Discrete(len(DISCRETE_VELOCITIES))
-        self.observation_space = obs.observation_space(cfg.obs_size, cfg.observation)
+        self.observation_space = obs.observation_space(
+            cfg.obs_size, cfg.observation, cfg.n_actions if cfg.action_mode == "waypoint" else 0)
         self.world = None
         self.sim: Simulator | None = None
         self.slam: RBPF | None = None
@@ -312,6 +313,9 @@ class EmmiEnv(gym.Env):
             self._costs = travel_costs(planning_map, self.geometry, pose[:2], self.robot_config.radius)
             self._slots = candidate_slots(planning_map, self.slam.paths[self.slam.best], self._costs,
                                           self.config.n_frontiers, self.config.n_revisits, self._blocked)
+            self._loop_spreads = [certainty.loop_displacement_spread(self.slam.paths, self.slam.log_weights,
+                                                                     t.path_index, log_weights=True)
+                                  if t is not None and t.kind == "revisit" else 0.0 for t in self._slots]
 
     def _take_snapshot(self) -> Snapshot:
         m = self._metrics
@@ -361,8 +365,12 @@ class EmmiEnv(gym.Env):
         image = obs.map_image(self._map_channel, self.slam.paths[self.slam.best], pose, window, cfg.obs_size)
         if cfg.observation == "image":
             return image
-        return {"map": image, "pose": obs.pose_vector(pose, self.world.bounds),
-                "certainty": obs.certainty_vector(self._metrics.emmi, self._metrics.pose_entropy)}
+        observation = {"map": image, "pose": obs.pose_vector(pose, self.world.bounds),
+                       "certainty": obs.certainty_vector(self._metrics.emmi, self._metrics.pose_entropy)}
+        if cfg.action_mode == "waypoint":
+            observation["targets"] = obs.target_features(self._slots, self._loop_spreads, pose, self.world.bounds,
+                                                         self.geometry.resolution)
+        return observation
 
     def _info(self, components: dict) -> dict:
         m = self._metrics

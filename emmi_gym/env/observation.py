@@ -14,17 +14,25 @@ UNKNOWN_PIXEL = 127
 PATH_PIXEL = 128
 ROBOT_PIXEL = 255
 POSE_ENTROPY_RANGE = 20.0  # nats: the certainty vector carries pose_entropy / 20, clipped to [-1, 1]
+FRONTIER_LENGTH_RANGE = 10.0  # m: a frontier's length / 10 m, clipped to 1
+LOOP_SPREAD_RANGE = 0.5  # m: a revisit's loop displacement spread / 0.5 m, clipped to 1
+TARGET_FEATURES = ("valid", "revisit", "dx", "dy", "travel_cost", "frontier_length", "loop_strength", "loop_spread")
 
 
-def observation_space(obs_size: int, kind: str) -> spaces.Space:
+def observation_space(obs_size: int, kind: str, n_slots: int = 0) -> spaces.Space:
+    """The image alone (``kind='image'``) or the Dict: map, pose, certainty and, with ``n_slots`` target
+    slots (waypoint mode), one row of :data:`TARGET_FEATURES` per slot."""
     image = spaces.Box(0, 255, (2, obs_size, obs_size), dtype=np.uint8)
     if kind == "image":
         return image
-    return spaces.Dict({
+    parts = {
         "map": image,
         "pose": spaces.Box(-1.0, 1.0, (4,), dtype=np.float32),
         "certainty": spaces.Box(-1.0, 1.0, (2,), dtype=np.float32),
-    })
+    }
+    if n_slots:
+        parts["targets"] = spaces.Box(-1.0, 1.0, (n_slots, len(TARGET_FEATURES)), dtype=np.float32)
+    return spaces.Dict(parts)
 
 
 def view_window(bounds, pose, size: int, egocentric: bool, extent: float) -> tuple[float, float, float]:
@@ -108,6 +116,33 @@ def pose_vector(pose, bounds) -> np.ndarray:
     x = 2.0 * (pose[0] - xmin) / (xmax - xmin) - 1.0
     y = 2.0 * (pose[1] - ymin) / (ymax - ymin) - 1.0
     return np.clip(np.array([x, y, math.cos(pose[2]), math.sin(pose[2])], dtype=np.float32), -1.0, 1.0)
+
+
+def target_features(slots, loop_spreads, pose, bounds, resolution: float) -> np.ndarray:
+    """(n_slots, 8) float32 in [-1, 1], one row per action slot, so the policy sees what each action means.
+
+    Columns (:data:`TARGET_FEATURES`): 1 if the slot holds a target; 1 if it is a revisit
+    (loop-closing) target; its offset from the estimated pose, (dx, dy) / the world's
+    larger side; its travel cost / twice that side; a frontier's length (cells times
+    ``resolution``) / 10 m; a revisit's loop strength 1 - travel cost / path length
+    closed and its ``loop_spreads`` entry / 0.5 m (the particles' disagreement about the
+    robot's position relative to the revisited pose,
+    :func:`~emmi_gym.certainty.loop_displacement_spread`: what closing the loop can
+    resolve), both 0 for a frontier. Empty slots are all zeros.
+    """
+    xmin, ymin, xmax, ymax = bounds
+    side = max(xmax - xmin, ymax - ymin)
+    rows = np.zeros((len(slots), len(TARGET_FEATURES)), dtype=np.float32)
+    for k, (target, spread) in enumerate(zip(slots, loop_spreads)):
+        if target is None:
+            continue
+        revisit = target.kind == "revisit"
+        rows[k] = (1.0, float(revisit), (target.x - pose[0]) / side, (target.y - pose[1]) / side,
+                   target.travel_cost / (2.0 * side),
+                   0.0 if revisit else target.gain * resolution / FRONTIER_LENGTH_RANGE,
+                   1.0 - 1.0 / target.gain if revisit else 0.0,
+                   spread / LOOP_SPREAD_RANGE if revisit else 0.0)
+    return np.clip(rows, -1.0, 1.0)
 
 
 def certainty_vector(emmi: float, pose_entropy: float) -> np.ndarray:

@@ -23,7 +23,7 @@ from ..errors import FieldError
 
 #: The algorithms a configuration may name: Stable-Baselines3's and sb3-contrib's classes.
 ALGORITHMS = ("PPO", "A2C", "MaskablePPO", "DQN", "SAC")
-POLICIES = ("MultiInputPolicy", "CnnPolicy", "MlpPolicy")
+POLICIES = ("MultiInputPolicy", "CnnPolicy", "MlpPolicy", "TargetScoringPolicy")
 VEC_ENVS = ("subproc", "dummy")
 _KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "discount_unit", "n_envs", "vec_env",
          "total_timesteps", "seed", "eval", "checkpoint_freq")
@@ -31,6 +31,15 @@ _KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "discount_unit
 
 class AgentConfigError(FieldError):
     """An agent configuration is malformed; says which file, which field, what was expected."""
+
+
+def policy_argument(name: str):
+    """What SB3 takes as ``policy`` for a name of :data:`POLICIES`: SB3's own names as they are, ours as a class."""
+    if name == "TargetScoringPolicy":
+        from .target_policy import TargetScoringPolicy
+
+        return TargetScoringPolicy
+    return name
 
 
 def algorithm_class(name: str):
@@ -148,6 +157,8 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
     policy = data.get("policy", "MultiInputPolicy")
     if policy not in POLICIES:
         raise AgentConfigError(source, "policy", f"one of {list(POLICIES)}", policy)
+    if policy == "TargetScoringPolicy" and algorithm != "MaskablePPO":
+        raise AgentConfigError(source, "policy", "TargetScoringPolicy only with algorithm MaskablePPO", policy)
     hyper = data.get("hyperparameters") or {}
     if not isinstance(hyper, dict):
         raise AgentConfigError(source, "hyperparameters", "a mapping of the algorithm's keywords", hyper)

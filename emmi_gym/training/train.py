@@ -21,7 +21,7 @@ import gymnasium as gym
 import yaml
 
 from .callbacks import eval_callback_class
-from .config import AgentConfig, algorithm_class, parse_agent_config
+from .config import AgentConfig, algorithm_class, parse_agent_config, policy_argument
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
@@ -102,7 +102,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         if config.discount_unit is not None:
             hyperparameters["rollout_buffer_class"] = rollout_buffer_class(
                 config.algorithm, isinstance(env.observation_space, gym.spaces.Dict))
-        model = cls(config.policy, env, seed=config.seed, tensorboard_log=str(run_dir / "tb"), verbose=verbose,
+        model = cls(policy_argument(config.policy), env, seed=config.seed, tensorboard_log=str(run_dir / "tb"), verbose=verbose,
                     **hyperparameters)
     per_env = max(1, config.n_envs)
     evaluation = eval_callback_class(config.algorithm)(
