@@ -160,10 +160,12 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     bad = sorted(set(args.rewards) - set(REWARDS))
     if bad:
         raise ValueError(f"--rewards: unknown {bad}; choose from {list(REWARDS)}")
+    config = load_agent_config(args.config)
+    if args.timesteps is None:
+        args.timesteps = config.total_timesteps
     for name in ("seeds", "timesteps", "episodes"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name} must be at least 1, got {getattr(args, name)}")
-    config = load_agent_config(args.config)
     started = time.perf_counter()
     results = run_benchmark(config, args.rewards, range(args.seeds), args.timesteps, args.episodes, args.baselines,
                             args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet)
@@ -229,7 +231,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the agent configuration whose reward is varied (default agents/ppo_emmi.yaml)")
     bench.add_argument("--rewards", nargs="+", default=["emmi", "pose_entropy", "joint_entropy", "coverage"])
     bench.add_argument("--seeds", type=int, default=3, help="training seeds per reward variant")
-    bench.add_argument("--timesteps", type=int, default=6000, help="training steps per agent")
+    bench.add_argument("--timesteps", type=int, default=None,
+                       help="training steps per agent (default: the configuration's total_timesteps)")
     bench.add_argument("--episodes", type=int, default=10, help="held-out evaluation episodes per agent")
     bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
     bench.add_argument("--workers", type=int, default=None, help="local worker processes (default one per core)")

@@ -172,6 +172,18 @@ def test_benchmark_on_a_local_ray_instance(tmp_path):
     assert [r["coverage"] for r in on_ray] == [r["coverage"] for r in local]  # the same runs, wherever they ran
 
 
+def test_benchmark_command_trains_for_the_configurations_budget_by_default(tmp_path, capsys):
+    path = tmp_path / "agent.yaml"
+    path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                               timesteps=16)))
+    assert main(["benchmark", "--config", str(path), "--rewards", "coverage", "--seeds", "1", "--episodes", "1",
+                 "--baselines", "--workers", "1", "--out", str(tmp_path / "bench"), "--quiet"]) == 0
+    summary = (tmp_path / "bench" / "benchmark_summary.md").read_text()
+    assert "16 training steps per agent" in summary and "| coverage (1 agents) |" in summary
+    assert yaml.safe_load((tmp_path / "bench" / "runs" / "coverage_seed0" / "config.yaml").read_text())[
+        "total_timesteps"] == 16
+
+
 def test_train_and_evaluate_commands(tmp_path, capsys):
     path = tmp_path / "agent.yaml"
     path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1})))
