@@ -24,6 +24,8 @@ from torch import nn
 
 MAP_EMBEDDING = 64
 HIDDEN = 64
+#: Policy keywords the design fixes: refused in ``policy_kwargs`` and not saved with a model.
+FIXED_KWARGS = ("net_arch", "features_extractor_class", "share_features_extractor")
 
 
 class MapPoseTargetsExtractor(BaseFeaturesExtractor):
@@ -78,7 +80,7 @@ class TargetScoringPolicy(MaskableMultiInputActorCriticPolicy):
     """
 
     def __init__(self, observation_space, action_space, lr_schedule, **kwargs):
-        for fixed in ("net_arch", "features_extractor_class", "share_features_extractor"):
+        for fixed in FIXED_KWARGS:
             if fixed in kwargs:
                 raise ValueError(f"TargetScoringPolicy fixes {fixed!r}; drop it from policy_kwargs")
         super().__init__(observation_space, action_space, lr_schedule,
@@ -86,7 +88,7 @@ class TargetScoringPolicy(MaskableMultiInputActorCriticPolicy):
 
     def _get_constructor_parameters(self) -> dict:
         data = super()._get_constructor_parameters()
-        for fixed in ("net_arch", "features_extractor_class", "share_features_extractor"):
+        for fixed in FIXED_KWARGS:
             data.pop(fixed, None)
         return data
 

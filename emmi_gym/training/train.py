@@ -102,8 +102,8 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         if config.discount_unit is not None:
             hyperparameters["rollout_buffer_class"] = rollout_buffer_class(
                 config.algorithm, isinstance(env.observation_space, gym.spaces.Dict))
-        model = cls(policy_argument(config.policy), env, seed=config.seed, tensorboard_log=str(run_dir / "tb"), verbose=verbose,
-                    **hyperparameters)
+        model = cls(policy_argument(config.policy), env, seed=config.seed, tensorboard_log=str(run_dir / "tb"),
+                    verbose=verbose, **hyperparameters)
     per_env = max(1, config.n_envs)
     evaluation = eval_callback_class(config.algorithm)(
         eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
