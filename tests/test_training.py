@@ -12,7 +12,7 @@ from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benc
 from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
 from emmi_gym.training.episodes import GROUND_TRUTH
 from emmi_gym.training.evaluate import evaluate_model
-from emmi_gym.training.train import latest_checkpoint, train
+from emmi_gym.training.train import latest_checkpoint, make_env, train
 
 #: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.
 FAST_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 150}
@@ -58,8 +58,12 @@ def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
     data = config_dict("MaskablePPO", {"max_decisions": 3}, {"n_steps": 8, "batch_size": 8, "n_epochs": 1},
                        timesteps=8, env_id="emmi_gym/LoopCorridor-v0")
     data["env"]["kwargs"] = {"particles": 3, "max_decisions": 3}
-    data["eval"] = {"freq": 100, "episodes": 1, "seed": 500}
+    data["eval"] = {"freq": 4, "episodes": 1, "seed": 500}
     result = train(parse_agent_config(data), tmp_path, progress=False)
+    with open(tmp_path / "eval_ground_truth.csv") as f:
+        evaluations = list(csv.DictReader(f))
+    assert [float(row["timesteps"]) for row in evaluations] == [4, 8]
+    assert all(row["closed_loop_first"] in ("0.0", "1.0", "nan") for row in evaluations)  # logged while training
     rows = evaluate_model(result.model_path, episodes=1, video_dir=tmp_path / "videos")
     assert rows[0]["env_steps"] <= 3 and "closed_loop_first" in rows[0]
     videos = list((tmp_path / "videos").glob("*.mp4"))
@@ -216,3 +220,23 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
     assert not closed_loop_first(line(decision, (1, 9), (-8, 9), (-8, 1), b), world, core.geometry, new_area)
     assert closed_loop_first(line(decision, (1, 12)), world, core.geometry, new_area) is None
     assert closed_loop_first(core.true_path[:, :2], world, core.geometry, new_area)  # the reset's drive began there
+
+
+@pytest.mark.parametrize("policy, expected", [("close_loop_first", 1.0), ("explore_first", 0.0)])
+def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(policy, expected):
+    from emmi_gym.policies import make_policy
+
+    env = make_env("emmi_gym/LoopCorridor-v0", {"particles": 3, "max_decisions": 2})
+    scripted = make_policy(policy)
+    scripted.reset(7)
+    env.reset(seed=7)
+    infos, done = [], False
+    while not done:
+        _, _, terminated, truncated, info = env.step(scripted(env))
+        infos.append(info)
+        done = terminated or truncated
+    assert all("closed_loop_first" not in i for i in infos[:-1])
+    assert infos[-1]["closed_loop_first"] == expected
+    explore = make_env("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 1})
+    explore.reset(seed=0)
+    assert "closed_loop_first" not in explore.step(0)[4]   # no decision point: nothing to report

@@ -23,6 +23,7 @@ from ..parallel import run_in_processes
 from .config import AgentConfig
 from .episodes import PolicyActor, nanmean, run_episodes
 from .evaluate import EVALUATION_SEED, evaluate_model
+from .loop_order import LOOP_ORDER_KEY
 from .train import make_env, train
 
 #: Ground-truth columns of the benchmark table, with their labels.
@@ -32,7 +33,7 @@ TABLE_COLUMNS = {
     "coverage": "coverage",
     "reached_target": "reached the coverage target",
     "sim_steps_to_target": "simulator steps to the target",
-    "closed_loop_first": "closed the loop before the new area",
+    LOOP_ORDER_KEY: "closed the loop before the new area",
 }
 
 
@@ -200,8 +201,9 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
     import matplotlib.pyplot as plt
 
     files = {"curves": out / "learning_curves.png", "final": out / "final_metrics.png"}
-    measures = ("coverage", "map_accuracy", "ate")
-    fig, axes = plt.subplots(1, len(measures), figsize=(12, 3.4))
+    curves_have_loop_order = any(LOOP_ORDER_KEY in row for r in results for row in r["curve"])
+    measures = ("coverage", "map_accuracy", "ate") + ((LOOP_ORDER_KEY,) if curves_have_loop_order else ())
+    fig, axes = plt.subplots(1, len(measures), figsize=(4 * len(measures), 3.4))
     for variant in dict.fromkeys(r["job"].variant for r in results if r["job"].kind == "agent"):
         curves = [r["curve"] for r in results if r["job"].variant == variant and r["curve"]]
         if not curves:
@@ -213,7 +215,7 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
             ax.plot(steps, values.mean(axis=0), marker="o", ms=3, label=variant)
     for ax, measure in zip(axes, measures):
         ax.set_xlabel("training timesteps")
-        ax.set_title(f"held-out {measure}", fontsize=9)
+        ax.set_title(f"held-out: {TABLE_COLUMNS.get(measure, measure)}", fontsize=9)
         ax.grid(alpha=0.3)
     if axes[0].lines:
         axes[0].legend(fontsize=8)
@@ -225,7 +227,7 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
     plt.close(fig)
 
     table = summary(results)
-    columns = ("map_accuracy", "ate", "coverage", "closed_loop_first")
+    columns = ("map_accuracy", "ate", "coverage", LOOP_ORDER_KEY)
     fig, axes = plt.subplots(1, len(columns), figsize=(12, 3.4))
     names = list(table)
     for ax, column in zip(axes, columns):

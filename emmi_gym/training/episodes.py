@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..experiments.ab import closed_loop_first, new_area_now
+from .loop_order import LOOP_ORDER_KEY
 
 #: What an episode's last ``info`` says against the ground truth (and the certainty it ended with).
 GROUND_TRUTH = ("coverage", "map_accuracy", "ate", "emmi", "pose_entropy", "joint_entropy", "collisions", "sim_steps")
@@ -42,25 +42,17 @@ class PolicyActor:
         return self.policy(env)
 
 
-def hosts_loop_experiment(core) -> bool:
-    """Whether episodes of this env start at a decision point between closing a loop and a new area."""
-    places = core.world.places
-    return core.config.start_at == "decision" and {"target_a", "target_b"} <= set(places)
-
-
 def run_episode(env, actor, seed: int) -> dict:
     """One episode with ``actor``; its return, steps and ground-truth measures (see :data:`GROUND_TRUTH`).
 
     ``sim_steps_to_target`` is the simulator steps until the coverage target (NaN if it was
-    not reached); where the episode starts at a loop's decision point, ``closed_loop_first``
-    says whether the robot went back to the loop's start before entering the new area (1.0),
-    entered the new area first (0.0), or neither (NaN).
+    not reached); where the episode starts at a loop's decision point and ``env`` is wrapped in
+    :class:`~emmi_gym.training.loop_order.LoopOrderInfo` (as ``make_env`` does),
+    ``closed_loop_first`` is 1.0 if the robot went back to the loop's start before entering the
+    new area, 0.0 if it entered the new area first, NaN if neither.
     """
     observation, _ = env.reset(seed=seed)
     actor.reset(seed)
-    core = env.unwrapped
-    new_area = new_area_now(core) if hosts_loop_experiment(core) else None
-    first_pose = len(core.true_path)  # the reset's drive to the decision point began at the start: not counted
     total, steps, terminated, truncated = 0.0, 0, False, False
     while not (terminated or truncated):
         observation, reward, terminated, truncated, info = env.step(actor(env, observation))
@@ -69,9 +61,8 @@ def run_episode(env, actor, seed: int) -> dict:
     row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in GROUND_TRUTH},
            "reached_target": float(terminated),
            "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan}
-    if new_area is not None:
-        order = closed_loop_first(core.true_path[first_pose:, :2], core.world, core.geometry, new_area)
-        row["closed_loop_first"] = math.nan if order is None else float(order)
+    if LOOP_ORDER_KEY in info:
+        row[LOOP_ORDER_KEY] = info[LOOP_ORDER_KEY]
     return row
 
 

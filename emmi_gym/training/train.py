@@ -22,6 +22,7 @@ import yaml
 
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, parse_agent_config, policy_argument
+from .loop_order import LoopOrderInfo
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
@@ -38,10 +39,11 @@ class TrainResult:
 
 
 def make_env(env_id: str, kwargs: dict, render_mode: str | None = None) -> gym.Env:
-    """``gym.make`` of an emmi_gym id; importable by reference, so spawned workers can build it."""
+    """``gym.make`` of an emmi_gym id, wrapped to report the episode's loop order (:class:`LoopOrderInfo`);
+    importable by reference, so spawned workers can build it."""
     import emmi_gym  # noqa: F401  (registers the ids in a fresh worker process)
 
-    return gym.make(env_id, render_mode=render_mode, **kwargs)
+    return LoopOrderInfo(gym.make(env_id, render_mode=render_mode, **kwargs))
 
 
 def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str):
