@@ -1,9 +1,14 @@
 """CARMEN log files: the text format of the public 2D laser SLAM datasets.
 
-Reads ``ODOM``, ``FLASER``, ``RAWLASER1``, ``ROBOTLASER1`` and ``TRUEPOS`` lines (other
-message types such as ``PARAM`` or ``SYNC`` are counted and passed over, ``#`` lines
-are comments) and writes ``ODOM``, ``ROBOTLASER1`` and ``TRUEPOS``. Numbers are
-written in Python's shortest round-trip form, so a log reads back bit for bit.
+Reads ``ODOM``, ``FLASER``, ``RAWLASER1``, ``ROBOTLASER1`` and ``TRUEPOS`` lines, plain or
+gzipped, and the ``PARAM`` lines that give the front laser's mounting offset; other
+message types (``SYNC``, ``NEFF``, other ``PARAM`` names, ...) are counted by type and
+passed over, ``#`` lines are comments. Every record must have exactly its fields, then
+the timestamp, hostname and logger timestamp: a line with extra tokens (two lines glued
+together), NUL bytes or bytes that are not UTF-8 is malformed, an error naming the file
+and line (or, with ``skip_bad_lines``, counted). Writes ``ODOM``, ``ROBOTLASER1`` and
+``TRUEPOS``. Numbers are written in Python's shortest round-trip form, so a log reads
+back bit for bit.
 
 This module is pure format: the simulator's recorder writes through it and the
 SLAM's replay reads through it, and neither knows about the other.
@@ -11,8 +16,9 @@ SLAM's replay reads through it, and neither knows about the other.
 
 from __future__ import annotations
 
+import gzip
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable, TextIO
 
@@ -62,14 +68,32 @@ class TruePoseRecord:
 
 @dataclass
 class CarmenLog:
-    """The records of a log, in file order, with what was skipped."""
+    """The records of a log, in file order, with what was skipped (bad lines by message type)."""
 
     records: list = field(default_factory=list)
-    skipped_bad_lines: int = 0
+    skipped_bad_lines: dict[str, int] = field(default_factory=dict)
     ignored_messages: dict[str, int] = field(default_factory=dict)
 
     def of_type(self, cls) -> list:
         return [r for r in self.records if isinstance(r, cls)]
+
+    def report(self) -> list[str]:
+        """What was not used, by type and count, one sentence each (empty when every line was read)."""
+        lines = []
+        if self.skipped_bad_lines:
+            lines.append("skipped malformed lines: " + _counts(self.skipped_bad_lines))
+        if self.ignored_messages:
+            lines.append("ignored messages: " + _counts(self.ignored_messages))
+        return lines
+
+
+def _counts(by_type: dict[str, int]) -> str:
+    return ", ".join(f"{count} {name}" for name, count in sorted(by_type.items()))
+
+
+#: PARAM names of the front laser's mounting offset on the robot (CARMEN's robot module).
+LASER_OFFSET_PARAMS = {"robot_frontlaser_offset": 0, "robot_frontlaser_side_offset": 1,
+                       "robot_frontlaser_angular_offset": 2}
 
 
 # ----------------------------------------------------------------------------- reading
@@ -107,7 +131,23 @@ class _Fields:
         return self.many(3, what)
 
     def timestamp(self) -> float:
-        return self.take("timestamp")  # hostname and logger timestamp follow; not needed
+        """The record's timestamp, which must be followed by the hostname and the logger timestamp only."""
+        value = self.take("timestamp")
+        rest = self.tokens[self.pos:]
+        if len(rest) > 2:
+            raise ValueError(f"{len(rest) - 2} tokens after the logger timestamp (expected: timestamp hostname "
+                             f"logger_timestamp; two lines glued together?), from {_excerpt(rest[2:])}")
+        if len(rest) == 2:
+            try:
+                float(rest[1])
+            except ValueError:
+                raise ValueError(f"logger timestamp: expected a number, got {_excerpt(rest[1:])}") from None
+        return value
+
+
+def _excerpt(tokens: list[str], n: int = 3) -> str:
+    text = " ".join(tokens[:n])
+    return repr(text[:60] + ("..." if len(tokens) > n or len(text) > 60 else ""))
 
 
 def _parse_odom(f: _Fields) -> OdometryRecord:
@@ -117,14 +157,14 @@ def _parse_odom(f: _Fields) -> OdometryRecord:
     return OdometryRecord(pose, tv, rv, f.timestamp())
 
 
-def _parse_flaser(f: _Fields) -> LaserRecord:
+def _parse_flaser(f: _Fields, fov: float) -> LaserRecord:
     n = f.count("num_readings")
     ranges = f.many(n, "range")
     f.pose("laser pose")
     odom = f.pose("odometry pose")
-    # FLASER is the classic 180 deg front laser: beams from -90 deg, evenly spaced
-    resolution = math.pi / (n - 1) if n > 1 else math.pi
-    return LaserRecord(ranges, -math.pi / 2, resolution, None, f.timestamp(), odom, None, "FLASER")
+    # FLASER lines do not say their field of view: ``fov``, centred, beams evenly spaced
+    resolution = fov / (n - 1) if n > 1 else fov
+    return LaserRecord(ranges, -fov / 2, resolution, None, f.timestamp(), odom, None, "FLASER")
 
 
 def _parse_laser_header(f: _Fields):
@@ -160,35 +200,83 @@ def _parse_truepos(f: _Fields) -> TruePoseRecord:
     return TruePoseRecord(true_pose, odom, f.timestamp())
 
 
-_PARSERS = {"ODOM": _parse_odom, "FLASER": _parse_flaser, "RAWLASER1": _parse_rawlaser,
-            "ROBOTLASER1": _parse_robotlaser, "TRUEPOS": _parse_truepos}
+_PARSERS = {"ODOM": _parse_odom, "RAWLASER1": _parse_rawlaser, "ROBOTLASER1": _parse_robotlaser,
+            "TRUEPOS": _parse_truepos}
 
 
-def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: bool = False) -> CarmenLog:
-    """Parse log lines; a malformed line raises :class:`CarmenFormatError` (or is counted, if skipping)."""
-    log = CarmenLog()
-    for number, line in enumerate(lines, start=1):
-        tokens = line.split()
-        if not tokens or tokens[0].startswith("#"):
-            continue
-        parser = _PARSERS.get(tokens[0])
-        if parser is None:
-            log.ignored_messages[tokens[0]] = log.ignored_messages.get(tokens[0], 0) + 1
-            continue
+def _tokens(line: str | bytes) -> list[str]:
+    """The whitespace-separated tokens of a line; ValueError for bytes that are not text."""
+    if isinstance(line, bytes):
         try:
-            log.records.append(parser(_Fields(tokens)))
+            line = line.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"bytes that are not UTF-8 text (byte {exc.start}); is this a CARMEN log?") from None
+    if "\0" in line:
+        raise ValueError(f"NUL bytes (at character {line.index(chr(0))}): a corrupt line")
+    return line.split()
+
+
+def _parse_param(f: _Fields, offset: np.ndarray) -> bool:
+    """Fold a PARAM line into the front laser's ``offset`` (x, y, theta); False if it names another parameter."""
+    if len(f.tokens) < 2 or f.tokens[1] not in LASER_OFFSET_PARAMS:
+        return False
+    f.pos = 2
+    offset[LASER_OFFSET_PARAMS[f.tokens[1]]] = f.take(f.tokens[1])
+    return True
+
+
+def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: bool = False,
+                flaser_fov: float = math.pi) -> CarmenLog:
+    """Parse log lines; a malformed line raises :class:`CarmenFormatError` (or is counted by type, if skipping).
+
+    ``flaser_fov`` (radians) is the field of view of FLASER lines, which do not carry it
+    (180 degrees: the SICK LMS of the classic datasets). A front-laser offset from
+    ``PARAM`` lines applies to the FLASER lines after it.
+    """
+    if not 0.0 < flaser_fov <= 2.0 * math.pi:
+        raise ValueError(f"flaser_fov must be in (0, 2 pi] radians, got {flaser_fov!r}")
+    log = CarmenLog()
+    offset = np.zeros(3)
+    for number, line in enumerate(lines, start=1):
+        try:
+            tokens = _tokens(line)
         except ValueError as exc:
             if not skip_bad_lines:
-                raise CarmenFormatError(source, number, f"{tokens[0]}: {exc}") from None
-            log.skipped_bad_lines += 1
+                raise CarmenFormatError(source, number, str(exc)) from None
+            log.skipped_bad_lines["unreadable"] = log.skipped_bad_lines.get("unreadable", 0) + 1
+            continue
+        if not tokens or tokens[0].startswith("#"):
+            continue
+        kind = tokens[0]
+        try:
+            if kind == "FLASER":
+                record = _parse_flaser(_Fields(tokens), flaser_fov)
+                if np.any(offset):
+                    record = replace(record, laser_offset=offset.copy())
+                log.records.append(record)
+            elif kind in _PARSERS:
+                log.records.append(_PARSERS[kind](_Fields(tokens)))
+            elif not (kind == "PARAM" and _parse_param(_Fields(tokens), offset)):
+                log.ignored_messages[kind] = log.ignored_messages.get(kind, 0) + 1
+        except ValueError as exc:
+            if not skip_bad_lines:
+                raise CarmenFormatError(source, number, f"{kind[:40]}: {exc}") from None
+            log.skipped_bad_lines[kind] = log.skipped_bad_lines.get(kind, 0) + 1
     return log
 
 
-def read_log(path, *, skip_bad_lines: bool = False) -> CarmenLog:
-    """Read a CARMEN log file (see :func:`parse_lines`)."""
+def read_log(path, *, skip_bad_lines: bool = False, flaser_fov: float = math.pi) -> CarmenLog:
+    """Read a CARMEN log file, plain or gzipped (see :func:`parse_lines`)."""
     path = Path(path)
-    with path.open() as fh:
-        return parse_lines(fh, str(path), skip_bad_lines=skip_bad_lines)
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, expected a CARMEN log file")
+    with path.open("rb") as raw:
+        gzipped = raw.read(2) == b"\x1f\x8b"
+    with (gzip.open(path, "rb") if gzipped else path.open("rb")) as fh:
+        try:
+            return parse_lines(fh, str(path), skip_bad_lines=skip_bad_lines, flaser_fov=flaser_fov)
+        except (OSError, EOFError) as exc:  # a truncated or corrupt gzip stream
+            raise ValueError(f"{path}: cannot be read as gzip ({exc})") from None
 
 
 # ----------------------------------------------------------------------------- writing

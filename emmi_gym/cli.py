@@ -44,23 +44,27 @@ def _cmd_record(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
+    import math
+
     import numpy as np
 
     from .carmen import read_log
     from .slam import RBPFConfig
     from .slam.replay import replay, write_outputs
 
-    log = read_log(args.log, skip_bad_lines=args.skip_bad_lines)
-    config = RBPFConfig(particles=args.particles, resolution=args.resolution)
-    result = replay(log, config, max_range=args.max_range, seed=args.seed, progress=not args.quiet)
+    log = read_log(args.log, skip_bad_lines=args.skip_bad_lines, flaser_fov=math.radians(args.flaser_fov))
+    config = RBPFConfig(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,
+                        matching_range=args.matching_range)
+    result = replay(log, config, max_range=args.max_range, seed=args.seed, progress=not args.quiet,
+                    every_scan=args.every_scan)
     if not result.rows:
         raise ValueError(f"{args.log}: no scan could be used (none had odometry)")
     files = write_outputs(result, args.out)
     last = result.rows[-1]
     print(f"{args.log}: {result.scans_used} scans, {len(result.rows)} RBPF updates "
           f"({args.particles} particles, {args.resolution} m cells)")
-    if log.skipped_bad_lines:
-        print(f"skipped {log.skipped_bad_lines} malformed lines")
+    for sentence in log.report():
+        print(sentence)
     if result.scans_without_odometry:
         print(f"skipped {result.scans_without_odometry} scans that came before any odometry")
     times = [r.update_ms for r in result.rows[1:]] or [last.update_ms]
@@ -69,7 +73,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
           f"{sum(r.resampled for r in result.rows)} resamplings")
     ate = result.ate()
     if ate is not None:
-        print(f"ATE of the best particle against TRUEPOS: {ate:.3f} m")
+        print(f"ATE of the best particle against TRUEPOS: {ate:.3f} m (dead reckoning {result.dead_reckoning_ate():.3f} m)")
     for path in files.values():
         print(f"wrote {path}")
     return 0
@@ -256,13 +260,20 @@ def build_parser() -> argparse.ArgumentParser:
     record.set_defaults(func=_cmd_record)
 
     rep = sub.add_parser("replay", help="run the RBPF and the certainty metrics on a CARMEN log")
-    rep.add_argument("log", help="CARMEN log (ODOM, FLASER, RAWLASER1, ROBOTLASER1, TRUEPOS lines)")
+    rep.add_argument("log", help="CARMEN log, plain or .gz (ODOM, FLASER, RAWLASER1, ROBOTLASER1, TRUEPOS lines)")
     rep.add_argument("--particles", type=int, default=15)
     rep.add_argument("--resolution", type=float, default=0.1, help="cell size, metres")
     rep.add_argument("--max-range", type=float, default=None,
                      help="laser range limit, metres (default: from the log; FLASER logs need it)")
     rep.add_argument("--seed", type=int, default=0)
     rep.add_argument("--skip-bad-lines", action="store_true", help="skip and count malformed lines")
+    rep.add_argument("--every-scan", action="store_true",
+                     help="make every scan an update (logs of keyframes; default: after 0.5 m or 0.3 rad)")
+    rep.add_argument("--flaser-fov", type=float, default=180.0, help="field of view of FLASER lines, degrees")
+    rep.add_argument("--insertion-range", type=float, default=None,
+                     help="echoes beyond this only free cells up to it (default: the sensor's range)")
+    rep.add_argument("--matching-range", type=float, default=None,
+                     help="beams beyond this are left out of matching and weights (default: the sensor's range)")
     rep.add_argument("--out", default="replay_out", help="folder for metrics.csv and the PNGs")
     rep.add_argument("--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=_cmd_replay)

@@ -32,9 +32,12 @@ class GridGeometry:
     @classmethod
     def covering(cls, xmin: float, ymin: float, xmax: float, ymax: float, resolution: float,
                  margin: float = 0.0) -> "GridGeometry":
-        """The smallest grid of ``resolution`` cells covering the box grown by ``margin``."""
-        if not (xmax > xmin and ymax > ymin):
-            raise ValueError(f"empty box ({xmin}, {ymin}) - ({xmax}, {ymax})")
+        """The smallest grid of ``resolution`` cells covering the box grown by ``margin`` (the box may be
+        flat, as a path along an axis, if the margin gives it an area)."""
+        if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax, margin)):
+            raise ValueError(f"box ({xmin}, {ymin}) - ({xmax}, {ymax}) with margin {margin}: expected finite numbers")
+        if not (xmax + margin > xmin - margin and ymax + margin > ymin - margin):
+            raise ValueError(f"empty box ({xmin}, {ymin}) - ({xmax}, {ymax}) with margin {margin}")
         if not resolution > 0:
             raise ValueError(f"resolution must be positive, got {resolution!r}")
         x0, y0 = xmin - margin, ymin - margin

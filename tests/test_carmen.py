@@ -59,7 +59,8 @@ def test_malformed_lines_give_their_line_number(recorded):
         carmen.parse_lines(lines, "bad.log")
     lines[9] = "ODOM 1.0 2.0"
     log = carmen.parse_lines(lines, "bad.log", skip_bad_lines=True)
-    assert log.skipped_bad_lines == 2
+    kinds = (lines[5].split()[0], "ODOM")
+    assert sum(log.skipped_bad_lines.values()) == 2 and set(log.skipped_bad_lines) == set(kinds)
     with pytest.raises(carmen.CarmenFormatError, match=r"bad\.log:10: ODOM: line ends before"):
         carmen.parse_lines(["# comment"] * 9 + [lines[9]], "bad.log")
 
@@ -84,6 +85,7 @@ def test_other_laser_formats_and_messages():
     # the laser sits 0.1 m along world x from the robot, which faces 0.5 rad: in the robot frame
     np.testing.assert_allclose(robot.laser_offset, [0.1 * math.cos(0.5), -0.1 * math.sin(0.5), 0.0], atol=1e-12)
     assert log.ignored_messages == {"PARAM": 1, "SYNC": 1}
+    assert log.report() == ["ignored messages: 1 PARAM, 1 SYNC"]
     truth = log.of_type(carmen.TruePoseRecord)[0]
     np.testing.assert_array_equal(truth.odometry_pose, [4, 5, 6])
     with pytest.raises(carmen.CarmenFormatError, match="<log>:1: FLASER: num_readings: expected a count"):
@@ -102,3 +104,75 @@ def test_record_command_writes_a_readable_log(tmp_path, capsys):
         main(["record", "office", "--route", "nope", "--out", str(out)])
     assert exit_info.value.code == 2
     assert "has no route 'nope'; it has ['left_loop', 'right_loop']" in capsys.readouterr().err
+
+
+SCAN = " ".join(["2.5"] * 180)
+
+
+def test_glued_nul_and_binary_lines_are_errors_with_their_line_number():
+    good = f"FLASER 180 {SCAN} 0 0 0 0 0 0 1.0 host 1.0"
+    glued = "ODOM 0 0 0 0 0 0 1.0 host 1.0" + good  # the newline lost: the scan must not vanish
+    with pytest.raises(carmen.CarmenFormatError, match=r"x\.log:2: ODOM: .*tokens after the logger timestamp"):
+        carmen.parse_lines([good, glued], "x.log")
+    with pytest.raises(carmen.CarmenFormatError, match=r"x\.log:1: NUL bytes"):
+        carmen.parse_lines(["\0\0" + good], "x.log")
+    with pytest.raises(carmen.CarmenFormatError, match=r"x\.log:2: bytes that are not UTF-8"):
+        carmen.parse_lines([good.encode(), b"\xff\xfe\x00garbage"], "x.log")
+    with pytest.raises(carmen.CarmenFormatError, match=r"x\.log:1: FLASER: .*tokens after"):
+        carmen.parse_lines([good + " 7 8 9"], "x.log")
+    log = carmen.parse_lines([glued, "\0" + good, good], "x.log", skip_bad_lines=True)
+    assert log.skipped_bad_lines == {"ODOM": 1, "unreadable": 1}
+    assert log.report() == ["skipped malformed lines: 1 ODOM, 1 unreadable"]
+
+
+@pytest.mark.parametrize("n", [180, 181, 361, 541])
+def test_flaser_of_any_width_spans_the_field_of_view(n):
+    line = f"FLASER {n} {' '.join(['1.0'] * n)} 0 0 0 0 0 0 1.0 host 1.0"
+    scan = carmen.parse_lines([line]).of_type(carmen.LaserRecord)[0]
+    assert scan.ranges.size == n
+    assert scan.angles[0] == pytest.approx(-math.pi / 2) and scan.angles[-1] == pytest.approx(math.pi / 2)
+    wide = carmen.parse_lines([line], flaser_fov=math.radians(240)).of_type(carmen.LaserRecord)[0]
+    assert wide.angles[-1] - wide.angles[0] == pytest.approx(math.radians(240))
+    with pytest.raises(ValueError, match="flaser_fov"):
+        carmen.parse_lines([line], flaser_fov=7.0)
+
+
+def test_gzipped_logs_and_laser_offsets_from_param_lines(tmp_path):
+    import gzip
+
+    lines = ["PARAM robot_frontlaser_offset 0.25 nohost 0", "PARAM robot_frontlaser_side_offset -0.05 nohost 0",
+             "PARAM robot_max_velocity 1.0 nohost 0", f"FLASER 180 {SCAN} 0 0 0 0 0 0 1.0 host 1.0"]
+    path = tmp_path / "run.log.gz"
+    with gzip.open(path, "wt") as fh:
+        fh.write("\n".join(lines) + "\n")
+    log = carmen.read_log(path)
+    scan = log.of_type(carmen.LaserRecord)[0]
+    np.testing.assert_array_equal(scan.laser_offset, [0.25, -0.05, 0.0])
+    assert log.ignored_messages == {"PARAM": 1}
+    with pytest.raises(ValueError, match="is a folder"):
+        carmen.read_log(tmp_path)
+    broken = tmp_path / "broken.log.gz"
+    broken.write_bytes(path.read_bytes()[:40])
+    with pytest.raises(ValueError, match="broken.log.gz: cannot be read as gzip"):
+        carmen.read_log(broken)
+
+
+def test_replay_matches_truth_by_time_and_writes_tum(tmp_path):
+    """TRUEPOS lines after their scans (as the radish-noisy logs have them) still give an ATE, and the
+    best path is written in the TUM format."""
+    from emmi_gym.slam import RBPFConfig
+    from emmi_gym.slam.replay import replay, write_tum
+
+    lines = []
+    for k in range(6):
+        x = 0.3 * k
+        ranges = " ".join(f"{2.0 + 0.01 * b:.2f}" for b in range(180))
+        lines += [f"FLASER 180 {ranges} {x} 0 0 {x} 0 0 {k}.0 host {k}.0",
+                  f"TRUEPOS {x} 0.01 0 {x} 0 0 {k}.0 host {k}.0"]
+    result = replay(carmen.parse_lines(lines), RBPFConfig(particles=2), max_range=30.0, every_scan=True)
+    assert len(result.rows) == 6 and all(t is not None for t in result.true_poses)
+    assert result.ate() is not None and result.dead_reckoning_ate() == pytest.approx(0.0, abs=1e-9)
+    table = np.loadtxt(write_tum(result, tmp_path / "best.tum"))
+    assert table.shape == (6, 8)
+    np.testing.assert_allclose(table[:, 0], np.arange(6.0))
+    np.testing.assert_allclose(table[:, 6] ** 2 + table[:, 7] ** 2, 1.0, atol=1e-6)

@@ -201,7 +201,8 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="3 ranges but 2 beam angles"):
         slam.process([0, 0, 0], [1.0, 2.0, 3.0], [0.0, 1.0])
     for bad in (dict(particles=0), dict(resolution=-0.1), dict(logodds_free=0.2), dict(likelihood_exponent=0),
-                dict(motion_alphas=(1, 2)), dict(resample_threshold=2), dict(logodds_clamp=100)):
+                dict(motion_noise=(1, 2)), dict(resample_threshold=2), dict(logodds_clamp=100),
+                dict(match_radius=0), dict(coarse_trigger=1.5), dict(insertion_range=-1.0)):
         with pytest.raises(ValueError, match="RBPF|logodds_clamp"):
             RBPFConfig(**bad)
 

@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 
 from emmi_gym.certainty import _kernels as certainty_kernels
 from emmi_gym.slam import _kernels as K
+from emmi_gym.slam import _matching as MT
+from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam.occupancy import beam_gaps
 from emmi_gym.slam.resampling import systematic_resample
 
@@ -106,7 +108,7 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     angles = -span / 2 + np.arange(n_beams) * span / (n_beams if full_circle else n_beams - 1)
     gaps = beam_gaps(angles)
     assert (gaps[-1] > 0) == full_circle
-    rays = K.scan_rays(ranges, angles, gaps, 2.0, 0.7, RES, 0.3)
+    rays = K.scan_rays(ranges, angles, gaps, 2.0, np.full(n_beams, 0.7), RES, 0.3)
     want_rays = twin_rays(ranges, angles, gaps, 2.0, 0.7, 0.3)
     np.testing.assert_allclose(np.column_stack(rays), np.array(want_rays), atol=1e-12)
     expected = twin_insert(codes, poses, want_rays, 17, -8, 100)
@@ -114,10 +116,22 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     hits = np.zeros((m, h, w, 3), dtype=np.int8)
     stamp = np.zeros((h, w), dtype=np.int64)
     counts = np.array([np.bincount(c.ravel().astype(np.int64) + 128, minlength=256) for c in codes])
-    serial = K.insert_scans(got, hits, counts, poses, *rays, 17, -8, 100, 0.0, 0.0, RES, stamp, 0)
+    block = 4
+    coarse = np.array([occupied_per_block(c, block) for c in codes])
+    serial = K.insert_scans(got, hits, counts, coarse, block, poses, *rays, 17, -8, 100, 0.0, 0.0, RES, stamp, 0)
     assert serial == 2 * m
     np.testing.assert_array_equal(got, expected)
     np.testing.assert_array_equal(counts, [np.bincount(c.ravel() + 128, minlength=256) for c in expected])
+    np.testing.assert_array_equal(coarse, [occupied_per_block(c, block) for c in expected])
+
+
+def occupied_per_block(grid, block):
+    """How many cells of each block x block block are occupied (code > 0), blocks cut at the edges."""
+    h, w = grid.shape
+    out = np.zeros((-(-h // block), -(-w // block)), dtype=np.int32)
+    for row, col in zip(*np.nonzero(grid > 0)):
+        out[row // block, col // block] += 1
+    return out
 
 
 def test_hit_means_follow_the_end_points():
@@ -132,18 +146,21 @@ def test_hit_means_follow_the_end_points():
         a = math.atan2(ey - 0.05, ex - 0.05)
         counts = np.zeros((1, 256), dtype=np.int64)
         counts[0, 128] = 100
-        serial = K.insert_scans(codes, hits, counts, np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
-                                np.array([K.RAY_HIT]), 17, -8, 100, 0.0, 0.0, RES, stamp, serial)
+        serial = K.insert_scans(codes, hits, counts, np.zeros((1, 10, 10), dtype=np.int32), 1,
+                                np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]), np.array([K.RAY_HIT]), 17,
+                                -8, 100, 0.0, 0.0, RES, stamp, serial)
     stored = hits[0, 5, 5]
     assert stored[2] == 3
     offset_from_centre = np.mean(ends, axis=0) / RES - 5.5  # in cells, from the centre of cell (5, 5)
     np.testing.assert_allclose(stored[:2] / 254, offset_from_centre, atol=1 / 254 + 1e-9)
 
 
-def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, window, sigma):
+def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, radius, sigma):
+    """Brute force: every cell within the window; d^2 capped at (radius / RES)^2."""
     h, w = grid.shape
+    window = math.ceil(radius / RES)
+    cap2 = (radius / RES) ** 2
     scale = RES * RES / (2 * sigma * sigma)
-    null = -((window + 1.0) ** 2) * scale
     total, matched = 0.0, 0
     for r, a in zip(ranges, angles):
         if not 0 < r < max_range:
@@ -152,21 +169,16 @@ def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, window, sigm
         hx, hy = (x + r * c) / RES, (y + r * s) / RES
         bx, by = round(-math.sqrt(2) * c), round(-math.sqrt(2) * s)
         hcx, hcy = math.floor(hx), math.floor(hy)
-        if not (window + 1 <= hcx < w - window - 1 and window + 1 <= hcy < h - window - 1):
-            total += null
-            continue
-        best = math.inf
-        for row in range(hcy - window, hcy + window + 1):
-            for col in range(hcx - window, hcx + window + 1):
-                if grid[row, col] > 0 and grid[row + by, col + bx] < 0:
-                    mx = col + 0.5 + hits[row, col, 0] / 254
-                    my = row + 0.5 + hits[row, col, 1] / 254
-                    best = min(best, (mx - hx) ** 2 + (my - hy) ** 2)
-        if best < math.inf:
-            total -= best * scale
-            matched += 1
-        else:
-            total += null
+        best = cap2
+        if window + 1 <= hcx < w - window - 1 and window + 1 <= hcy < h - window - 1:
+            for row in range(hcy - window, hcy + window + 1):
+                for col in range(hcx - window, hcx + window + 1):
+                    if grid[row, col] > 0 and grid[row + by, col + bx] < 0:
+                        mx = col + 0.5 + hits[row, col, 0] / 254
+                        my = row + 0.5 + hits[row, col, 1] / 254
+                        best = min(best, (mx - hx) ** 2 + (my - hy) ** 2)
+        matched += best < cap2
+        total -= best * scale
     return total, matched
 
 
@@ -176,26 +188,34 @@ def random_map(rng, h=40, w=40):
     return grid, hits
 
 
-@given(st.integers(0, 2**31), st.integers(0, 2))
-def test_scan_loglik_matches_twin(seed, window):
+def settings(radius=0.15, sigma=0.075, exponent=0.5, min_matched=0.0, trigger=0.0, block=2):
+    config = RBPFConfig(resolution=RES, match_radius=radius, likelihood_sigma=sigma, likelihood_exponent=exponent,
+                        min_match_fraction=min_matched, coarse_trigger=trigger, match_max_iterations=30)
+    return MT.match_settings(config, 0.0, 0.0, RES, block)
+
+
+@given(st.integers(0, 2**31), st.sampled_from([0.05, 0.1, 0.15, 0.32]))
+def test_scan_loglik_matches_twin(seed, radius):
+    """The ring search with early exit finds what a search of the whole window finds."""
     rng = np.random.default_rng(seed)
     grid, hits = random_map(rng)
+    grid[rng.random(grid.shape) < 0.6] = -50  # sparser surfaces: the rings go further out
     x, y, theta = rng.uniform(1.2, 2.8), rng.uniform(1.2, 2.8), rng.uniform(-np.pi, np.pi)
     ranges = rng.uniform(0.1, 2.5, 30)
     ranges[::7] = 3.0  # max range: skipped
     angles = np.linspace(-np.pi, np.pi, 30, endpoint=False)
     offsets = np.empty((30, 4))
-    n = K.beam_offsets(theta, ranges, angles, 3.0, RES, offsets)
-    scale = RES * RES / (2 * 0.075**2)
-    got = K.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, window, scale, -((window + 1.0) ** 2) * scale)
-    want = twin_loglik(grid, hits, x, y, theta, ranges, angles, 3.0, window, 0.075)
+    n = MT.beam_offsets(theta, ranges, angles, 3.0, RES, offsets)
+    s = settings(radius)
+    got = MT.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, s.window, s.cap2, s.scale)
+    want = twin_loglik(grid, hits, x, y, theta, ranges, angles, 3.0, radius, 0.075)
     assert got[1] == want[1]
     assert got[0] == pytest.approx(want[0], rel=1e-9, abs=1e-9)
 
 
 def twin_hill_climb(grid, hits, start, ranges, angles, mean, precision, lstep, astep, refinements, iterations):
     def value(p):
-        ll, n = twin_loglik(grid, hits, p[0], p[1], p[2], ranges, angles, 3.0, 1, 0.075)
+        ll, n = twin_loglik(grid, hits, p[0], p[1], p[2], ranges, angles, 3.0, 0.15, 0.075)
         d = p - mean
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
         return ll - 0.5 * d @ precision @ d, n
@@ -230,10 +250,7 @@ def test_hill_climb_matches_twin(seed):
     precision = np.diag([400.0, 400.0, 1000.0])
     ranges = rng.uniform(0.3, 1.2, 24)
     angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
-    scale = RES * RES / (2 * 0.075**2)
-    geo = np.array([0.0, 0.0, RES])
-    got = K.hill_climb(grid, hits, start, ranges, angles, 3.0, geo, 1, scale, -4 * scale, mean, precision,
-                       0.05, 0.05, 3, 30)
+    got = MT.hill_climb(grid, hits, start, ranges, angles, 3.0, settings(), mean, precision)
     want = twin_hill_climb(grid, hits, start, ranges, angles, mean, precision, 0.05, 0.05, 3, 30)
     np.testing.assert_allclose(got[0], want[0], atol=1e-9)
     assert got[1] == pytest.approx(want[1], abs=1e-6)
@@ -245,6 +262,7 @@ def test_improved_proposal_matches_twin():
     rng = np.random.default_rng(4)
     grid, hits = random_map(rng)
     codes, all_hits = grid[None].copy(), hits[None].copy()
+    coarse = occupied_per_block(grid, 2)[None]
     sample = np.array([[2.0, 2.1, 0.3]])
     mean = sample + 0.02
     precision = np.diag([400.0, 400.0, 1000.0])[None]
@@ -253,8 +271,8 @@ def test_improved_proposal_matches_twin():
     ranges = rng.uniform(0.3, 1.2, 24)
     angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
     new, inc, flags = np.empty((1, 3)), np.empty(1), np.zeros(1, dtype=np.bool_)
-    K.improved_proposal(codes, all_hits, sample, mean, precision, lognorm, normals, ranges, angles, 1, 3.0, 0.0,
-                        0.0, RES, 1, 0.075, 0.05, 0.05, 3, 30, 0.5, 1, new, inc, flags)
+    MT.improved_proposal(codes, all_hits, coarse, sample, mean, precision, lognorm, normals, ranges, angles, ranges,
+                         angles, 3.0, settings(), new, inc, flags)
     best, _, _ = twin_hill_climb(grid, hits, sample[0], ranges, angles, mean[0], precision[0], 0.05, 0.05, 3, 30)
     stencil = np.zeros((7, 3))
     for axis, step in enumerate((0.05, 0.05, 0.05)):
@@ -262,7 +280,7 @@ def test_improved_proposal_matches_twin():
     scores = []
     for off in stencil:
         p = best + off
-        ll, _ = twin_loglik(grid, hits, *p, ranges, angles, 3.0, 1, 0.075)
+        ll, _ = twin_loglik(grid, hits, *p, ranges, angles, 3.0, 0.15, 0.075)
         d = p - mean[0]
         scores.append(ll - 0.5 * d @ precision[0] @ d + lognorm[0])
     scores = np.array(scores)

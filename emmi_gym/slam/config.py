@@ -28,53 +28,80 @@ class RBPFConfig:
     # A max-range reading frees this far (0: ignore such beams). Off by default: a
     # dropped echo also reads max range, and freeing along it would erase walls.
     max_range_free: float = 0.0
-    # motion model of the filter (per update), the four alphas of Thrun's table 5.6
-    motion_alphas: tuple[float, float, float, float] = (0.03, 0.0008, 0.002, 0.0005)
-    # update policy (GMapping's linearUpdate / angularUpdate)
+    # Echoes beyond insertion_range only free the cells up to it (GMapping's maxUrange), and
+    # beams beyond matching_range are left out of the matching and the weights; None: the
+    # sensor's range. Long beams fix the heading: limit the insertion, not the matching.
+    insertion_range: float | None = None
+    matching_range: float | None = None
+    # motion model of the filter, GMapping's (srr, srt, str, stt): translation from translation
+    # (m/m), rotation from translation (rad/m), translation from rotation (m/rad), rotation
+    # from rotation (rad/rad), deviations in the robot's frame (see motion.local_motion_std)
+    motion_noise: tuple[float, float, float, float] = (0.05, 0.03, 0.02, 0.1)
+    # update policy (GMapping's linearUpdate / angularUpdate); 0 and 0: every scan an update
     linear_update: float = 0.5
     angular_update: float = 0.3
-    # scan matching and likelihood (GMapping's lstep/astep, iterations, kernelSize, lsigma, lskip)
+    # scan matching (see _matching): GMapping's lstep / astep / iterations, a search radius in
+    # metres around each end point, and a coarse stage on blocks of about coarse_resolution
     match_linear_step: float = 0.05
     match_angular_step: float = 0.05
     match_refinements: int = 3
     match_max_iterations: int = 60
-    match_window: int = 1                 # cells searched around a beam's end point
-    match_beam_skip: int = 1              # use every n-th beam for the proposal and the weights
-    match_climb_skip: int = 6             # ... and every n-th of those while hill-climbing (coarse to fine)
+    match_radius: float = 0.15            # beyond this an end point counts as unmatched
+    match_climb_spacing: float = 0.1      # radians between the beams used while hill-climbing
+    coarse_resolution: float = 0.2        # block side of the coarse stage (a whole number of cells)
+    coarse_angular_step: float = 0.05     # first heading step of the coarse climb
+    coarse_trigger: float = 0.6           # run the coarse stage below this fraction of matched beams
+    # likelihood and weights
     likelihood_sigma: float = 0.075
+    # radians between the beams of the likelihood: neighbouring beams see the same surface
+    # and their errors are not independent (Thrun et al. 2005, sec. 6.4, subsample the beams)
+    likelihood_beam_spacing: float = 0.035
     min_match_fraction: float = 0.3       # fall back to odometry below this fraction of matched beams
     # weights: an exponent on the likelihood (MRPT's powFactor; GMapping's 1 / (ogain * M))
     likelihood_exponent: float = 0.0075
     resample_threshold: float = 0.5       # resample when Neff / M < this
 
     def __post_init__(self):
-        positive = ("resolution", "logodds_occupied", "logodds_clamp", "logodds_step", "linear_update",
-                    "angular_update", "match_linear_step", "match_angular_step", "likelihood_sigma",
-                    "likelihood_exponent")
+        positive = ("resolution", "logodds_occupied", "logodds_clamp", "logodds_step", "match_linear_step",
+                    "match_angular_step", "match_radius", "match_climb_spacing", "coarse_resolution",
+                    "coarse_angular_step", "likelihood_sigma", "likelihood_beam_spacing", "likelihood_exponent")
         for name in positive:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"RBPF {name} must be a positive number, got {value!r}")
+        for name in ("insertion_range", "matching_range"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and value > 0):
+                raise ValueError(f"RBPF {name} must be a positive number or None (the sensor's range), "
+                                 f"got {value!r}")
         if not self.logodds_free < 0:
             raise ValueError(f"RBPF logodds_free must be negative, got {self.logodds_free!r}")
         if self.logodds_clamp / self.logodds_step > 127:
             raise ValueError(f"logodds_clamp / logodds_step must fit int8 codes (<= 127), got "
                              f"{self.logodds_clamp / self.logodds_step:.0f}")
-        for name in ("particles", "match_refinements", "match_max_iterations", "match_beam_skip",
-                     "match_climb_skip"):
+        for name in ("linear_update", "angular_update"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"RBPF {name} must be a number >= 0, got {value!r}")
+        for name in ("particles", "match_refinements", "match_max_iterations"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise ValueError(f"RBPF {name} must be an integer >= 1, got {value!r}")
-        if not (isinstance(self.match_window, int) and self.match_window >= 0):
-            raise ValueError(f"RBPF match_window must be an integer >= 0, got {self.match_window!r}")
-        if len(self.motion_alphas) != 4 or any(not (a >= 0) for a in self.motion_alphas):
-            raise ValueError(f"RBPF motion_alphas must be four numbers >= 0, got {self.motion_alphas!r}")
+        if len(self.motion_noise) != 4 or any(not (isinstance(a, (int, float)) and 0 <= a < math.inf)
+                                              for a in self.motion_noise):
+            raise ValueError(f"RBPF motion_noise must be four finite numbers >= 0, got {self.motion_noise!r}")
         if not 0.0 <= self.max_range_free:
             raise ValueError(f"RBPF max_range_free must be >= 0, got {self.max_range_free!r}")
+        if not 0.0 <= self.coarse_trigger <= 1.0:
+            raise ValueError(f"RBPF coarse_trigger must be in [0, 1], got {self.coarse_trigger!r}")
         if not 0.0 <= self.min_match_fraction <= 1.0:
             raise ValueError(f"RBPF min_match_fraction must be in [0, 1], got {self.min_match_fraction!r}")
         if not 0.0 <= self.resample_threshold <= 1.0:
             raise ValueError(f"RBPF resample_threshold must be in [0, 1], got {self.resample_threshold!r}")
+
+    def coarse_block(self) -> int:
+        """Cells per side of a coarse block: ``coarse_resolution`` in whole cells (at least 1)."""
+        return max(1, int(round(self.coarse_resolution / self.resolution)))
 
     @classmethod
     def option_names(cls) -> list[str]:

@@ -3,12 +3,14 @@
 Each particle is a pose path and its own occupancy grid. An update, once the robot
 has moved far enough (GMapping's linearUpdate / angularUpdate):
 
-1. propagate each particle with the odometry motion model (noise sampled);
-2. scan-match it against its own grid and draw its pose from the Gaussian fitted
-   around the match (the improved proposal), or keep the odometry sample when the
-   match is poor;
-3. weight by the proposal's normaliser (the scan likelihood, tempered by
-   ``likelihood_exponent``), in log space;
+1. propagate each particle with the odometry motion model in the robot's frame
+   (GMapping's, noise sampled);
+2. scan-match it against its own grid (``_matching``: a search radius in metres and a
+   coarse stage, so the capture basin does not shrink with the cells) and draw its pose
+   from the Gaussian fitted around the match (the improved proposal), or keep the
+   odometry sample when the match is poor;
+3. weight by the proposal's normaliser (the scan likelihood over beams decimated to
+   ``likelihood_beam_spacing``, tempered by ``likelihood_exponent``), in log space;
 4. resample (systematic) only when Neff / M < ``resample_threshold``;
 5. insert the scan into each particle's grid (eq. 4, log-odds) and extend its path;
 6. measure the certainty of the particle set (EMMI and the rest).
@@ -27,8 +29,8 @@ import numpy as np
 
 from .. import certainty
 from ..grid import GridGeometry
-from ..motion import compose_motion, motion_std, perturb_motion, relative_motion, wrap_angle
-from . import _kernels
+from ..motion import compose_local, local_delta, local_motion_std
+from . import _matching
 from .config import RBPFConfig
 from .occupancy import ParticleMaps
 from .resampling import systematic_resample
@@ -122,7 +124,7 @@ class RBPF:
         base = self.poses[self.best]
         if self._last_odometry is None:
             return base.copy()
-        return compose_motion(base, *relative_motion(self._last_odometry, np.asarray(odometry_pose)))
+        return compose_local(base, local_delta(self._last_odometry, np.asarray(odometry_pose, dtype=np.float64)))
 
     def expected_map(self) -> np.ndarray:
         """EM, eq. (6): probability grid (H, W)."""
@@ -142,7 +144,7 @@ class RBPF:
         geometry = self._initial_geometry or GridGeometry.covering(
             pose[0] - self.max_range - 2, pose[1] - self.max_range - 2,
             pose[0] + self.max_range + 2, pose[1] + self.max_range + 2, self.config.resolution)
-        self.maps = ParticleMaps(geometry, m, self.cell_codes)
+        self.maps = ParticleMaps(geometry, m, self.cell_codes, self.config.coarse_block())
         self.poses = np.tile(pose, (m, 1))
         self.log_weights = np.zeros(m)
         self.accumulated_log_weights = np.zeros(m)
@@ -155,9 +157,8 @@ class RBPF:
         has moved ``linear_update`` metres or turned ``angular_update`` radians since the last update."""
         if self._last_odometry is None:
             return True
-        _, trans, _ = relative_motion(self._last_odometry, odometry_pose)
-        turned = abs(float(wrap_angle(odometry_pose[2] - self._last_odometry[2])))
-        return abs(trans) >= self.config.linear_update or turned >= self.config.angular_update
+        dx, dy, dtheta = local_delta(self._last_odometry, odometry_pose)
+        return math.hypot(dx, dy) >= self.config.linear_update or abs(dtheta) >= self.config.angular_update
 
     def process(self, odometry_pose, ranges, angles, timestamp: float = 0.0) -> UpdateMetrics | None:
         """Feed one scan with the odometry pose at which it was taken.
@@ -176,7 +177,7 @@ class RBPF:
             return self._initialise(odometry_pose, ranges, angles, timestamp)
         if not self.update_due(odometry_pose):
             return None
-        motion = relative_motion(self._last_odometry, odometry_pose)
+        motion = local_delta(self._last_odometry, odometry_pose)
         self._last_odometry = odometry_pose
         return self._update(motion, ranges, angles, timestamp)
 
@@ -184,7 +185,7 @@ class RBPF:
         self._last_odometry = odometry_pose
         t0 = time.perf_counter()
         self._ensure_extent()
-        self.maps.insert(self.poses, ranges, angles, self.max_range, self.config.max_range_free)
+        self._insert(ranges, angles)
         self._append_path()
         phases = dict.fromkeys(_PHASES, 0.0)
         phases["insertion"] = time.perf_counter() - t0
@@ -197,23 +198,21 @@ class RBPF:
         # 1-3: motion sample, scan matching, improved proposal and its weight
         motion_normals = self.rng.standard_normal((m, 3))
         proposal_normals = self.rng.standard_normal((m, 3))
-        samples = compose_motion(self.poses, *perturb_motion(*motion, cfg.motion_alphas, motion_normals))
-        means = compose_motion(self.poses, *motion)
-        precisions, lognorms = self._motion_gaussians(motion)
-        skip = cfg.match_beam_skip
+        sd = local_motion_std(motion, cfg.motion_noise)
+        samples = compose_local(self.poses, motion + motion_normals * sd)
+        means = compose_local(self.poses, motion)
+        precisions, lognorms = self._motion_gaussians(sd)
+        matching_ranges = self._matching_ranges(ranges)
+        climb, likelihood = self._beam_subsets(angles)
         new_poses = np.empty_like(self.poses)
         increments = np.empty(m)
         matched = np.zeros(m, dtype=np.bool_)
-        n_hits = int(np.count_nonzero(ranges[::skip] < self.max_range))
         g = self.geometry
-        _kernels.improved_proposal(
-            self.maps.codes, self.maps.hits, samples, means, precisions, lognorms, proposal_normals,
-            np.ascontiguousarray(ranges[::skip]), np.ascontiguousarray(angles[::skip]), cfg.match_climb_skip,
-            self.max_range,
-            g.origin_x, g.origin_y, g.resolution, cfg.match_window, cfg.likelihood_sigma,
-            cfg.match_linear_step, cfg.match_angular_step, cfg.match_refinements, cfg.match_max_iterations,
-            cfg.likelihood_exponent, max(1, int(math.ceil(cfg.min_match_fraction * n_hits))),
-            new_poses, increments, matched)
+        settings = _matching.match_settings(cfg, g.origin_x, g.origin_y, g.resolution, self.maps.block)
+        _matching.improved_proposal(
+            self.maps.codes, self.maps.hits, self.maps.coarse, samples, means, precisions, lognorms,
+            proposal_normals, matching_ranges[climb], angles[climb], matching_ranges[likelihood], angles[likelihood],
+            self.max_range, settings, new_poses, increments, matched)
         self.poses = new_poses
         t1 = time.perf_counter()
         phases["scan_matching"] = t1 - t0
@@ -232,21 +231,41 @@ class RBPF:
         phases["resampling"] = t3 - t2
         # 5: map update and path
         self._ensure_extent()
-        self.maps.insert(self.poses, ranges, angles, self.max_range, cfg.max_range_free)
+        self._insert(ranges, angles)
         self._append_path()
         phases["insertion"] = time.perf_counter() - t3
         return self._measure(timestamp, resampled, float(matched.mean()), phases)
 
-    def _motion_gaussians(self, motion) -> tuple[np.ndarray, np.ndarray]:
-        """Precision matrices and log-normalisers of the motion model, linearised at each particle."""
-        rot1, trans, rot2 = motion
-        sd = np.array(motion_std(rot1, trans, rot2, self.config.motion_alphas))
-        heading = self.poses[:, 2] + rot1
-        jac = np.zeros((self.poses.shape[0], 3, 3))
-        jac[:, 0, 0], jac[:, 0, 1] = -trans * np.sin(heading), np.cos(heading)
-        jac[:, 1, 0], jac[:, 1, 1] = trans * np.cos(heading), np.sin(heading)
-        jac[:, 2, 0], jac[:, 2, 2] = 1.0, 1.0
-        cov = jac @ np.diag(sd ** 2) @ jac.transpose(0, 2, 1) + np.diag(_MOTION_FLOOR ** 2)
+    def _insert(self, ranges, angles) -> None:
+        self.maps.insert(self.poses, ranges, angles, self.max_range, self.config.max_range_free,
+                         self.config.insertion_range)
+
+    def _matching_ranges(self, ranges: np.ndarray) -> np.ndarray:
+        """The ranges the matcher sees: beyond ``matching_range`` a beam reads as no echo."""
+        limit = self.config.matching_range
+        if limit is None or limit >= self.max_range:
+            return ranges
+        return np.where(ranges > limit, self.max_range, ranges)
+
+    def _beam_subsets(self, angles: np.ndarray) -> tuple[slice, slice]:
+        """Every n-th beam for hill-climbing and for the likelihood, n from the beam spacing wanted."""
+        if angles.size < 2:
+            return slice(None), slice(None)
+        step = float(angles[-1] - angles[0]) / (angles.size - 1)
+
+        def every(spacing: float) -> slice:
+            return slice(None, None, max(1, int(round(spacing / step))))
+
+        return every(self.config.match_climb_spacing), every(self.config.likelihood_beam_spacing)
+
+    def _motion_gaussians(self, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Precision matrices and log-normalisers of the motion model in the world frame, per particle:
+        the robot-frame deviations ``sd`` (dx, dy, dtheta) turned by each particle's heading."""
+        m = self.poses.shape[0]
+        c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
+        rot = np.zeros((m, 3, 3))
+        rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = c, -s, s, c, 1.0
+        cov = rot @ np.diag(sd ** 2) @ rot.transpose(0, 2, 1) + np.diag(_MOTION_FLOOR ** 2)
         sign, logdet = np.linalg.slogdet(cov)
         return np.ascontiguousarray(np.linalg.inv(cov)), -0.5 * (3 * math.log(2 * math.pi) + logdet)
 

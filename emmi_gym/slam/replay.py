@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -18,46 +18,76 @@ from .rbpf import RBPF, UpdateMetrics
 
 @dataclass
 class ReplayResult:
-    """What a replay produced: per-update metrics, the filter at the end, the true poses if logged."""
+    """What a replay produced: per-update metrics, the filter at the end, and per update its scan's
+    timestamp, the odometry pose and the true pose (TRUEPOS nearest in time, or None)."""
 
     rows: list[UpdateMetrics]
     slam: RBPF
-    true_poses: np.ndarray | None          # (updates, 3) latest TRUEPOS before each update, if any
+    timestamps: np.ndarray
+    update_odometry: np.ndarray            # (updates, 3)
+    true_poses: list                        # per update: (3,) array or None
     scans_used: int = 0
     scans_without_odometry: int = 0
     log: carmen.CarmenLog | None = None
-    notes: list[str] = field(default_factory=list)
+
+    def _with_truth(self) -> np.ndarray:
+        return np.array([k for k, t in enumerate(self.true_poses) if t is not None], dtype=np.int64)
 
     def ate(self) -> float | None:
-        """ATE (m, aligned) of the best particle's path against TRUEPOS, when the log has it."""
-        if self.true_poses is None:
+        """ATE (m, aligned) of the best particle's path against TRUEPOS at the updates that have one."""
+        keep = self._with_truth()
+        if keep.size == 0:
             return None
-        return absolute_trajectory_error(self.slam.paths[self.slam.best], self.true_poses)
+        truth = np.array([self.true_poses[k] for k in keep])
+        return absolute_trajectory_error(self.slam.paths[self.slam.best][keep], truth)
+
+    def dead_reckoning_ate(self) -> float | None:
+        """The same ATE for the odometry alone."""
+        keep = self._with_truth()
+        if keep.size == 0:
+            return None
+        return absolute_trajectory_error(self.update_odometry[keep], np.array([self.true_poses[k] for k in keep]))
+
+
+def true_pose_at(log: carmen.CarmenLog, tolerance: float = 0.05):
+    """A function of a timestamp giving the TRUEPOS pose logged nearest to it (before or after the
+    scan, within ``tolerance`` seconds), or None; None for a log without TRUEPOS lines."""
+    truths = log.of_type(carmen.TruePoseRecord)
+    if not truths:
+        return None
+    times = np.array([t.timestamp for t in truths])
+    order = np.argsort(times, kind="stable")
+    times = times[order]
+    poses = np.array([truths[k].true_pose for k in order])
+
+    def lookup(timestamp: float):
+        k = int(np.searchsorted(times, timestamp))
+        best = min((j for j in (k - 1, k) if 0 <= j < times.size), key=lambda j: abs(times[j] - timestamp))
+        return poses[best] if abs(times[best] - timestamp) <= tolerance else None
+
+    return lookup
 
 
 def laser_stream(log: carmen.CarmenLog):
-    """(laser pose by odometry, scan record, latest true pose or None) for every scan that has odometry.
+    """(laser pose by odometry, scan record) for every scan; the pose is None before any odometry.
 
     ROBOTLASER1 and FLASER lines carry the robot's odometry pose; a RAWLASER1 line takes
     the latest ODOM before it. The laser's mounting offset (ROBOTLASER1) is applied, so
     the filter tracks the laser itself.
     """
     odometry = None
-    truth = None
     for record in log.records:
         if isinstance(record, carmen.OdometryRecord):
             odometry = record.pose
-        elif isinstance(record, carmen.TruePoseRecord):
-            truth = record.true_pose
         elif isinstance(record, carmen.LaserRecord):
             pose = record.odometry_pose if record.odometry_pose is not None else odometry
             if pose is None:
-                yield None, record, truth
+                yield None, record
                 continue
             if record.laser_offset is not None and np.any(record.laser_offset):
                 ox, oy, otheta = record.laser_offset
                 pose = compose_motion(pose, np.arctan2(oy, ox), np.hypot(ox, oy), otheta - np.arctan2(oy, ox))
-            yield pose, record, truth
+            yield pose, record
 
 
 def log_extent(poses: np.ndarray, max_range: float, resolution: float, drift_margin: float = 0.2) -> GridGeometry:
@@ -72,12 +102,15 @@ def log_extent(poses: np.ndarray, max_range: float, resolution: float, drift_mar
 
 
 def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_range: float | None = None,
-           seed: int = 0, progress: bool = False, grow_chunk: float = 10.0) -> ReplayResult:
+           seed: int = 0, progress: bool = False, grow_chunk: float = 10.0,
+           every_scan: bool = False) -> ReplayResult:
     """Feed every scan of ``log`` to a fresh RBPF.
 
     The grids cover the log's odometry (see :func:`log_extent`), so that the joint
     entropy is measured over one extent; they grow in chunks of ``grow_chunk`` metres
-    only if the corrected path leaves even that.
+    only if the corrected path leaves even that. ``every_scan`` makes each scan an update
+    (for logs of keyframes, GMapping's ``-linearUpdate 0 -angularUpdate 0``). Readings
+    at or beyond ``max_range`` are taken as no echo.
     """
     lasers = log.of_type(carmen.LaserRecord)
     if not lasers:
@@ -87,19 +120,22 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
         if not ranges_known:
             raise ValueError("FLASER lines do not carry the laser's maximum range: pass max_range (--max-range)")
         max_range = max(ranges_known)
-    odometry = np.array([pose for pose, _, _ in laser_stream(log) if pose is not None])
+    odometry = np.array([pose for pose, _ in laser_stream(log) if pose is not None])
     if odometry.size == 0:
         raise ValueError("no scan in the log has odometry (ODOM before RAWLASER1, or a robot pose in the line)")
+    if every_scan:
+        config = replace(config, linear_update=0.0, angular_update=0.0)
     slam = RBPF(config, max_range=max_range, geometry=log_extent(odometry, max_range, config.resolution),
                 grow_chunk=grow_chunk)
-    rows, truths = [], []
+    rows, times, odometry_at_update, truths = [], [], [], []
     used = missing = 0
+    truth_at = true_pose_at(log)
     stream = laser_stream(log)
     if progress:
         from tqdm import tqdm
 
         stream = tqdm(stream, total=len(lasers), unit="scan", desc="replay")
-    for pose, record, truth in stream:
+    for pose, record in stream:
         if pose is None:
             missing += 1
             continue
@@ -110,13 +146,66 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
         used += 1
         if metrics is not None:
             rows.append(metrics)
-            truths.append(truth)
-    true_poses = np.array(truths) if truths and all(t is not None for t in truths) else None
-    return ReplayResult(rows, slam, true_poses, used, missing, log)
+            times.append(record.timestamp)
+            odometry_at_update.append(pose)
+            truths.append(truth_at(record.timestamp) if truth_at is not None else None)
+    return ReplayResult(rows, slam, np.array(times), np.array(odometry_at_update), truths, used, missing, log)
+
+
+def write_tum(result: ReplayResult, path) -> Path:
+    """The best particle's trajectory in the TUM format (``timestamp x y z qx qy qz qw``, one pose per
+    update, z = 0, the heading as a rotation about z), as the ``evo`` tools read it."""
+    path = Path(path)
+    poses = result.slam.paths[result.slam.best]
+    half = poses[:, 2] / 2.0
+    table = np.column_stack([result.timestamps, poses[:, 0], poses[:, 1], np.zeros(len(poses)),
+                             np.zeros(len(poses)), np.zeros(len(poses)), np.sin(half), np.cos(half)])
+    np.savetxt(path, table, fmt="%.6f", header="timestamp x y z qx qy qz qw", comments="# ")
+    return path
+
+
+def _explored_extent(slam: RBPF, margin: float = 1.0) -> tuple[slice, slice, tuple]:
+    """Rows, columns and (xmin, xmax, ymin, ymax) of the box of the best map's known cells, with a margin."""
+    g = slam.geometry
+    rows, cols = np.nonzero(slam.maps.codes[slam.best])
+    if rows.size == 0:
+        return slice(0, g.rows), slice(0, g.cols), g.extent
+    pad = int(round(margin / g.resolution))
+    r0, r1 = max(int(rows.min()) - pad, 0), min(int(rows.max()) + 1 + pad, g.rows)
+    c0, c1 = max(int(cols.min()) - pad, 0), min(int(cols.max()) + 1 + pad, g.cols)
+    return (slice(r0, r1), slice(c0, c1),
+            (g.origin_x + c0 * g.resolution, g.origin_x + c1 * g.resolution,
+             g.origin_y + r0 * g.resolution, g.origin_y + r1 * g.resolution))
+
+
+def write_map_png(result: ReplayResult, path, grid: np.ndarray | None = None, title: str = "best particle's map"):
+    """A map (default: the best particle's) cropped to the explored area, with the best path in blue."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    slam = result.slam
+    grid = slam.best_map() if grid is None else grid
+    rows, cols, extent = _explored_extent(slam)
+    crop = grid[rows, cols]
+    fig, ax = plt.subplots(figsize=(7, 7 * crop.shape[0] / max(crop.shape[1], 1) + 0.6))
+    ax.imshow(crop, origin="lower", extent=extent, cmap="gray_r", vmin=0, vmax=1, interpolation="nearest")
+    path_xy = slam.paths[slam.best]
+    ax.plot(path_xy[:, 0], path_xy[:, 1], color="tab:blue", lw=0.8, label="best particle's path")
+    ax.set_title(title)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
 
 
 def write_outputs(result: ReplayResult, out_dir) -> dict[str, Path]:
-    """Write ``metrics.csv``, ``metrics.png``, ``expected_map.png`` and ``best_map.png`` into ``out_dir``."""
+    """Write ``metrics.csv``, ``metrics.png``, ``expected_map.png``, ``best_map.png`` and
+    ``best_trajectory.tum`` into ``out_dir``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -149,16 +238,7 @@ def write_outputs(result: ReplayResult, out_dir) -> dict[str, Path]:
     fig.savefig(paths["metrics.png"], dpi=110)
     plt.close(fig)
 
-    slam = result.slam
-    for name, grid, title in (("expected_map.png", slam.expected_map(), "expected map (eq. 6)"),
-                              ("best_map.png", slam.best_map(), "best particle's map")):
-        fig, ax = plt.subplots(figsize=(7, 7 * grid.shape[0] / max(grid.shape[1], 1) + 0.5))
-        ax.imshow(grid, origin="lower", extent=slam.geometry.extent, cmap="gray_r", vmin=0, vmax=1)
-        ax.plot(slam.paths[slam.best, :, 0], slam.paths[slam.best, :, 1], color="tab:blue", lw=0.8)
-        ax.set_title(title)
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        fig.tight_layout()
-        fig.savefig(paths[name], dpi=110)
-        plt.close(fig)
+    write_map_png(result, paths["expected_map.png"], result.slam.expected_map(), "expected map (eq. 6)")
+    write_map_png(result, paths["best_map.png"])
+    paths["best_trajectory.tum"] = write_tum(result, out / "best_trajectory.tum")
     return paths

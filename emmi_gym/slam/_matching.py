@@ -1,0 +1,385 @@
+"""Numba kernels of the scan matcher and the improved proposal.
+
+GMapping's design (Grisetti, Stachniss, Burgard 2007): each particle hill-climbs from
+its motion sample to the mode of ``log p(z | m, x) + log p(x | x_{t-1}, u)`` on its own
+grid, by moves of +-step in x, y and theta with the steps halved when no move helps;
+the new pose is drawn from a Gaussian fitted around that mode, and the weight grows by
+the proposal's normaliser (eqs. 18-20). Two changes make it independent of the cell
+size and widen its capture basin to about 0.5 m and 5 degrees:
+
+- **A search radius in metres.** A beam's end point looks for the nearest obstacle point
+  within ``radius`` metres (ring by ring, stopping once no farther ring can hold a nearer
+  one), not within one cell as GMapping's kernelSize 1. Its log-likelihood is
+  ``-min(d, radius)^2 / (2 sigma^2)``: a Gaussian truncated by an outlier floor, so one
+  beam can cost no more than the floor whatever the cell size.
+- **A coarse stage** (multi-resolution matching, as Olson 2009 and Cartographer). Each grid
+  keeps, per block of ``block x block`` cells, how many of its cells are occupied
+  (``coarse``, updated by the insertion). When the fine climb from the motion sample
+  matches too few beams, a climb on the blocks, each beam scoring ``exp(-d^2 / 2)`` with
+  d its distance in blocks to the nearest occupied block within two, moves the sample
+  into the fine basin first.
+
+Grid coordinates: ``g = (world - origin) / resolution``; cell (row, col) = (floor(gy), floor(gx)).
+Codes: > 0 occupied, < 0 free, 0 unknown; ``hits`` hold each cell's mean end point
+(see ``_kernels``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numba as nb
+import numpy as np
+
+from ._kernels import OFFSET_SCALE
+
+#: Scan-matching settings in grid units, built by :func:`match_settings`.
+MatchSettings = namedtuple("MatchSettings", [
+    "origin_x", "origin_y", "resolution",
+    "window",            # cells searched around an end point (ceil(radius / resolution))
+    "cap2",              # (radius / resolution)^2: a beam's squared distance is capped here
+    "scale",             # resolution^2 / (2 sigma^2): log-likelihood per squared cell
+    "linear_step", "angular_step", "refinements", "max_iterations",
+    "block",             # cells per coarse block side
+    "coarse_linear_step", "coarse_angular_step", "coarse_trigger",
+    "exponent",          # tempering of the weights
+    "min_matched",       # fraction of the likelihood beams that must match
+])
+
+
+def match_settings(config, origin_x: float, origin_y: float, resolution: float, block: int) -> MatchSettings:
+    """The kernel settings of an :class:`~emmi_gym.slam.config.RBPFConfig` on a grid of ``resolution``."""
+    radius_cells = config.match_radius / resolution
+    return MatchSettings(
+        float(origin_x), float(origin_y), float(resolution), int(math.ceil(radius_cells)), radius_cells ** 2,
+        resolution * resolution / (2.0 * config.likelihood_sigma ** 2),
+        config.match_linear_step, config.match_angular_step, config.match_refinements,
+        config.match_max_iterations, int(block), block * resolution, config.coarse_angular_step,
+        config.coarse_trigger, config.likelihood_exponent, config.min_match_fraction)
+
+
+@nb.njit(cache=True)
+def beam_offsets(theta, ranges, angles, max_range, resolution, out):
+    """End-point offsets of the beams that hit something, for a laser heading ``theta``.
+
+    Fills ``out[k] = (dx, dy, back_x, back_y)`` in grid cells for the k-th hit beam:
+    the end point is the laser's grid position plus (dx, dy); (back_x, back_y) is the
+    whole-cell step back towards the laser, sqrt(2) cells along the beam rounded
+    (GMapping's freeCellRatio), so never (0, 0). Returns the number of hit beams.
+    Depends on the heading only, so moves in x and y reuse it.
+    """
+    n = 0
+    for b in range(ranges.size):
+        r = ranges[b]
+        if r >= max_range or r <= 0.0:
+            continue
+        a = theta + angles[b]
+        c, s = math.cos(a), math.sin(a)
+        out[n, 0] = r * c / resolution
+        out[n, 1] = r * s / resolution
+        out[n, 2] = round(-math.sqrt(2.0) * c)
+        out[n, 3] = round(-math.sqrt(2.0) * s)
+        n += 1
+    return n
+
+
+@nb.njit(cache=True, inline="always")
+def _try_cell(grid, hits, row, col, back_x, back_y, hx, hy, best):
+    """Squared distance from (hx, hy) to the cell's mean hit point if the cell is a surface seen
+    from the laser (occupied, its neighbour back towards the laser free), else ``best``."""
+    if grid[row, col] > 0 and grid[row + back_y, col + back_x] < 0:
+        cell = hits[row, col]
+        mx = col + 0.5 + np.float64(cell[0]) / OFFSET_SCALE
+        my = row + 0.5 + np.float64(cell[1]) / OFFSET_SCALE
+        d2 = (mx - hx) ** 2 + (my - hy) ** 2
+        if d2 < best:
+            return d2
+    return best
+
+
+@nb.njit(cache=True)
+def nearest_surface_d2(grid, hits, hx, hy, back_x, back_y, window):
+    """Squared distance (cells^2) from the end point (hx, hy) to the nearest surface point within
+    ``window`` cells (Chebyshev), inf if none; the caller keeps window + 1 cells from the edge.
+
+    Rings of growing Chebyshev radius k are searched in turn; the end point and every mean
+    hit point lie inside their cells, so no point of ring k is nearer than k - 1 cells
+    and the search stops as soon as (k - 1)^2 >= the best distance found.
+    """
+    hcx, hcy = int(math.floor(hx)), int(math.floor(hy))
+    best = _try_cell(grid, hits, hcy, hcx, back_x, back_y, hx, hy, np.inf)
+    for k in range(1, window + 1):
+        if (k - 1) * (k - 1) >= best:
+            break
+        for j in range(-k, k + 1):
+            best = _try_cell(grid, hits, hcy - k, hcx + j, back_x, back_y, hx, hy, best)
+            best = _try_cell(grid, hits, hcy + k, hcx + j, back_x, back_y, hx, hy, best)
+        for j in range(-k + 1, k):
+            best = _try_cell(grid, hits, hcy + j, hcx - k, back_x, back_y, hx, hy, best)
+            best = _try_cell(grid, hits, hcy + j, hcx + k, back_x, back_y, hx, hy, best)
+    return best
+
+
+@nb.njit(cache=True)
+def scan_loglik(grid, hits, gx, gy, offsets, n_beams, window, cap2, scale):
+    """Log-likelihood of a scan on one grid, the laser at grid position (gx, gy).
+
+    Each hit beam scores ``-min(d^2, cap2) * scale``, d the distance in cells from its end
+    point to the nearest surface point (:func:`nearest_surface_d2`); a beam ending within
+    ``window + 1`` cells of the grid's edge scores the floor ``-cap2 * scale``.
+    Returns (log-likelihood, beams with d^2 < cap2).
+    """
+    h, w = grid.shape
+    total = 0.0
+    matched = 0
+    reach = window + 1
+    for b in range(n_beams):
+        hx = gx + offsets[b, 0]
+        hy = gy + offsets[b, 1]
+        hcx, hcy = int(math.floor(hx)), int(math.floor(hy))
+        d2 = cap2
+        if reach <= hcx < w - reach and reach <= hcy < h - reach:
+            d2 = min(cap2, nearest_surface_d2(grid, hits, hx, hy, int(offsets[b, 2]), int(offsets[b, 3]), window))
+        if d2 < cap2:
+            matched += 1
+        total -= d2 * scale
+    return total, matched
+
+
+@nb.njit(cache=True)
+def coarse_score(coarse, block, gx, gy, offsets, n_beams):
+    """Sum over hit beams of exp(-d^2 / 2), d the distance in blocks from the end point to the centre
+    of the nearest block within two that holds an occupied cell (0 when none)."""
+    h, w = coarse.shape
+    total = 0.0
+    for b in range(n_beams):
+        bx = (gx + offsets[b, 0]) / block
+        by = (gy + offsets[b, 1]) / block
+        cx, cy = int(math.floor(bx)), int(math.floor(by))
+        if not (2 <= cx < w - 2 and 2 <= cy < h - 2):
+            continue
+        best = np.inf
+        for row in range(cy - 2, cy + 3):
+            for col in range(cx - 2, cx + 3):
+                if coarse[row, col] > 0:
+                    d2 = (col + 0.5 - bx) ** 2 + (row + 0.5 - by) ** 2
+                    if d2 < best:
+                        best = d2
+        if best < np.inf:
+            total += math.exp(-0.5 * best)
+    return total
+
+
+@nb.njit(cache=True)
+def coarse_climb(coarse, start, ranges, angles, max_range, s):
+    """Hill climbing of :func:`coarse_score` from ``start`` (steps halved twice); returns the pose."""
+    current = np.empty((ranges.size, 4))
+    turned = np.empty((ranges.size, 4))
+    pose = start.copy()
+    n = beam_offsets(pose[2], ranges, angles, max_range, s.resolution, current)
+    gx, gy = (pose[0] - s.origin_x) / s.resolution, (pose[1] - s.origin_y) / s.resolution
+    best = coarse_score(coarse, s.block, gx, gy, current, n)
+    lstep, astep = s.coarse_linear_step, s.coarse_angular_step
+    refinement = 0
+    candidate = np.empty(3)
+    best_pose = pose.copy()
+    for _ in range(s.max_iterations):
+        improved = False
+        for move in range(6):
+            candidate[:] = pose
+            axis = move // 2
+            sign = 1.0 if move % 2 == 0 else -1.0
+            offsets = current
+            if axis == 2:
+                candidate[2] += sign * astep
+                beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, turned)
+                offsets = turned
+            else:
+                candidate[axis] += sign * lstep
+            value = coarse_score(coarse, s.block, (candidate[0] - s.origin_x) / s.resolution,
+                                 (candidate[1] - s.origin_y) / s.resolution, offsets, n)
+            if value > best:
+                best = value
+                best_pose[:] = candidate
+                improved = True
+        if improved:
+            if best_pose[2] != pose[2]:
+                beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, current)
+            pose[:] = best_pose
+        else:
+            refinement += 1
+            if refinement > 2:
+                break
+            lstep *= 0.5
+            astep *= 0.5
+    return pose
+
+
+@nb.njit(cache=True, inline="always")
+def _prior_quadratic(x, y, theta, mean, precision):
+    """(x - mean)^T P (x - mean) with the heading difference wrapped."""
+    d0 = x - mean[0]
+    d1 = y - mean[1]
+    d2 = (theta - mean[2] + math.pi) % (2.0 * math.pi) - math.pi
+    p = precision
+    return (d0 * (p[0, 0] * d0 + p[0, 1] * d1 + p[0, 2] * d2)
+            + d1 * (p[1, 0] * d0 + p[1, 1] * d1 + p[1, 2] * d2)
+            + d2 * (p[2, 0] * d0 + p[2, 1] * d1 + p[2, 2] * d2))
+
+
+@nb.njit(cache=True)
+def log_target(grid, hits, pose, offsets, n_beams, s, mean, precision):
+    """log p(z | m, x) + log p(x | x_{t-1}, u) up to a constant: the optimal proposal's log-density.
+
+    ``offsets`` must be those of ``pose[2]``. Returns (value, matched beams). The motion
+    term keeps the estimate where the scan says nothing (along a plain corridor).
+    """
+    gx = (pose[0] - s.origin_x) / s.resolution
+    gy = (pose[1] - s.origin_y) / s.resolution
+    ll, matched = scan_loglik(grid, hits, gx, gy, offsets, n_beams, s.window, s.cap2, s.scale)
+    return ll - 0.5 * _prior_quadratic(pose[0], pose[1], pose[2], mean, precision), matched
+
+
+@nb.njit(cache=True)
+def hill_climb(grid, hits, start, ranges, angles, max_range, s, mean, precision):
+    """GMapping's scan matcher on the proposal's log-density: greedy moves of +-step in x, y, theta;
+    halve the steps when none helps. Returns (best pose, its log-density, its matched beams)."""
+    current = np.empty((ranges.size, 4))
+    turned = np.empty((ranges.size, 4))
+    pose = start.copy()
+    n = beam_offsets(pose[2], ranges, angles, max_range, s.resolution, current)
+    best, matched = log_target(grid, hits, pose, current, n, s, mean, precision)
+    lstep, astep = s.linear_step, s.angular_step
+    refinement = 0
+    candidate = np.empty(3)
+    best_pose = pose.copy()
+    for _ in range(s.max_iterations):
+        improved = False
+        for move in range(6):
+            candidate[:] = pose
+            axis = move // 2
+            sign = 1.0 if move % 2 == 0 else -1.0
+            if axis == 2:
+                candidate[2] += sign * astep
+                beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, turned)
+                value, hit = log_target(grid, hits, candidate, turned, n, s, mean, precision)
+            else:
+                candidate[axis] += sign * lstep
+                value, hit = log_target(grid, hits, candidate, current, n, s, mean, precision)
+            if value > best:
+                best, matched = value, hit
+                best_pose[:] = candidate
+                improved = True
+        if improved:
+            if best_pose[2] != pose[2]:
+                beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, current)
+            pose[:] = best_pose
+        else:
+            refinement += 1
+            if refinement > s.refinements:
+                break
+            lstep *= 0.5
+            astep *= 0.5
+    return pose, best, matched
+
+
+@nb.njit(cache=True)
+def match(grid, hits, coarse, start, climb_ranges, climb_angles, max_range, s, mean, precision):
+    """The mode of the proposal near ``start``: the fine climb, and where it matches fewer than
+    ``coarse_trigger`` of the climbing beams, a coarse climb then a fine one from there; the
+    better of the two. Returns (pose, log-density)."""
+    pose, best, matched = hill_climb(grid, hits, start, climb_ranges, climb_angles, max_range, s, mean, precision)
+    n = 0
+    for b in range(climb_ranges.size):
+        if 0.0 < climb_ranges[b] < max_range:
+            n += 1
+    if matched >= s.coarse_trigger * n:
+        return pose, best
+    coarse_pose = coarse_climb(coarse, start, climb_ranges, climb_angles, max_range, s)
+    refined, value, _ = hill_climb(grid, hits, coarse_pose, climb_ranges, climb_angles, max_range, s, mean,
+                                   precision)
+    if value > best:
+        return refined, value
+    return pose, best
+
+
+@nb.njit(cache=True)
+def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_precisions, motion_lognorms,
+                      normals, climb_ranges, climb_angles, ranges, angles, max_range, s,
+                      new_poses, log_increments, matched_flags):
+    """The improved proposal of GMapping (Grisetti et al. 2007, eqs. 18-20), for every particle.
+
+    From each particle's motion sample x' (odometry noise applied), :func:`match` finds the
+    mode x* of ``L(x) = loglik(x) + log p(x | x_{t-1}, u)`` on the particle's own grid
+    (``climb_*``: the beams used while climbing). If at least ``min_matched`` of the
+    likelihood beams (``ranges``, ``angles``: decimated, since neighbouring beams' errors
+    are not independent) match there, evaluate L on x* and x* +- one step along x, y and
+    theta, fit a Gaussian weighted by exp(L), draw the new pose from it with ``normals``,
+    and add ``exponent * log(eta)`` to the log-weight, eta = sum exp(L) * step volume
+    (eq. 20). Otherwise keep x' and add ``exponent * loglik(x')``: the same integral
+    estimated by the one sample drawn from the motion model.
+    """
+    m = codes.shape[0]
+    lstep, astep = s.linear_step, s.angular_step
+    log_volume = math.log(lstep * lstep * astep)
+    offsets = np.empty((3, ranges.size, 4))  # beam offsets at headings x* - step, x*, x* + step
+    stencil = np.zeros((7, 3))
+    for axis in range(3):
+        step = astep if axis == 2 else lstep
+        stencil[1 + 2 * axis, axis] = -step
+        stencil[2 + 2 * axis, axis] = step
+    n_likelihood = 0
+    for b in range(ranges.size):
+        if 0.0 < ranges[b] < max_range:
+            n_likelihood += 1
+    min_matched = max(1, int(math.ceil(s.min_matched * n_likelihood)))
+    scores = np.empty(7)
+    pose = np.empty(3)
+    for i in range(m):
+        grid, cell_hits = codes[i], hits[i]
+        best_pose, _ = match(grid, cell_hits, coarse[i], motion_samples[i], climb_ranges, climb_angles,
+                             max_range, s, motion_means[i], motion_precisions[i])
+        for t in range(3):
+            n = beam_offsets(best_pose[2] + (t - 1) * astep, ranges, angles, max_range, s.resolution, offsets[t])
+        _, matched = scan_loglik(grid, cell_hits, (best_pose[0] - s.origin_x) / s.resolution,
+                                 (best_pose[1] - s.origin_y) / s.resolution, offsets[1], n, s.window, s.cap2,
+                                 s.scale)
+        matched_flags[i] = matched >= min_matched
+        if not matched_flags[i]:
+            n = beam_offsets(motion_samples[i, 2], ranges, angles, max_range, s.resolution, offsets[0])
+            gx = (motion_samples[i, 0] - s.origin_x) / s.resolution
+            gy = (motion_samples[i, 1] - s.origin_y) / s.resolution
+            ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s.window, s.cap2, s.scale)
+            new_poses[i] = motion_samples[i]
+            log_increments[i] = s.exponent * ll
+            continue
+        top = -np.inf
+        for k in range(7):
+            for axis in range(3):
+                pose[axis] = best_pose[axis] + stencil[k, axis]
+            t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
+            value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, motion_means[i], motion_precisions[i])
+            scores[k] = value + motion_lognorms[i]
+            if scores[k] > top:
+                top = scores[k]
+        total = 0.0
+        mean = np.zeros(3)
+        for k in range(7):
+            scores[k] = math.exp(scores[k] - top)
+            total += scores[k]
+            mean += scores[k] * stencil[k]
+        mean /= total
+        cov = np.zeros((3, 3))
+        for k in range(7):
+            d = stencil[k] - mean
+            cov += (scores[k] / total) * np.outer(d, d)
+        cov[0, 0] += 1e-6
+        cov[1, 1] += 1e-6
+        cov[2, 2] += 1e-7
+        chol = np.linalg.cholesky(cov)
+        draw = mean + chol @ normals[i]
+        new_poses[i, 0] = best_pose[0] + draw[0]
+        new_poses[i, 1] = best_pose[1] + draw[1]
+        new_poses[i, 2] = (best_pose[2] + draw[2] + math.pi) % (2.0 * math.pi) - math.pi
+        log_increments[i] = s.exponent * (top + math.log(total) + log_volume)
