@@ -171,51 +171,6 @@ def coarse_score(coarse, block, gx, gy, offsets, n_beams):
     return total
 
 
-@nb.njit(cache=True)
-def coarse_climb(coarse, start, ranges, angles, max_range, s):
-    """Hill climbing of :func:`coarse_score` from ``start`` (steps halved twice); returns the pose."""
-    current = np.empty((ranges.size, 4))
-    turned = np.empty((ranges.size, 4))
-    pose = start.copy()
-    n = beam_offsets(pose[2], ranges, angles, max_range, s.resolution, current)
-    gx, gy = (pose[0] - s.origin_x) / s.resolution, (pose[1] - s.origin_y) / s.resolution
-    best = coarse_score(coarse, s.block, gx, gy, current, n)
-    lstep, astep = s.coarse_linear_step, s.coarse_angular_step
-    refinement = 0
-    candidate = np.empty(3)
-    best_pose = pose.copy()
-    for _ in range(s.max_iterations):
-        improved = False
-        for move in range(6):
-            candidate[:] = pose
-            axis = move // 2
-            sign = 1.0 if move % 2 == 0 else -1.0
-            offsets = current
-            if axis == 2:
-                candidate[2] += sign * astep
-                beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, turned)
-                offsets = turned
-            else:
-                candidate[axis] += sign * lstep
-            value = coarse_score(coarse, s.block, (candidate[0] - s.origin_x) / s.resolution,
-                                 (candidate[1] - s.origin_y) / s.resolution, offsets, n)
-            if value > best:
-                best = value
-                best_pose[:] = candidate
-                improved = True
-        if improved:
-            if best_pose[2] != pose[2]:
-                beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, current)
-            pose[:] = best_pose
-        else:
-            refinement += 1
-            if refinement > 2:
-                break
-            lstep *= 0.5
-            astep *= 0.5
-    return pose
-
-
 @nb.njit(cache=True, inline="always")
 def _prior_quadratic(x, y, theta, mean, precision):
     """(x - mean)^T P (x - mean) with the heading difference wrapped."""
@@ -242,15 +197,26 @@ def log_target(grid, hits, pose, offsets, n_beams, s, mean, precision):
 
 
 @nb.njit(cache=True)
-def hill_climb(grid, hits, start, ranges, angles, max_range, s, mean, precision):
-    """GMapping's scan matcher on the proposal's log-density: greedy moves of +-step in x, y, theta;
-    halve the steps when none helps. Returns (best pose, its log-density, its matched beams)."""
+def _objective(coarse_stage, grid, hits, coarse, pose, offsets, n_beams, s, mean, precision):
+    """What a climb maximises: :func:`coarse_score` in the coarse stage, else :func:`log_target`.
+    Returns (value, matched beams; 0 in the coarse stage)."""
+    if coarse_stage:
+        return coarse_score(coarse, s.block, (pose[0] - s.origin_x) / s.resolution,
+                            (pose[1] - s.origin_y) / s.resolution, offsets, n_beams), 0
+    return log_target(grid, hits, pose, offsets, n_beams, s, mean, precision)
+
+
+@nb.njit(cache=True)
+def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s, mean, precision, linear_step,
+           angular_step, refinements):
+    """GMapping's scan matcher: greedy moves of +-step in x, y, theta on :func:`_objective`; halve the
+    steps when none helps, at most ``refinements`` times. Returns (best pose, its value, its matched beams)."""
     current = np.empty((ranges.size, 4))
     turned = np.empty((ranges.size, 4))
     pose = start.copy()
     n = beam_offsets(pose[2], ranges, angles, max_range, s.resolution, current)
-    best, matched = log_target(grid, hits, pose, current, n, s, mean, precision)
-    lstep, astep = s.linear_step, s.angular_step
+    best, matched = _objective(coarse_stage, grid, hits, coarse, pose, current, n, s, mean, precision)
+    lstep, astep = linear_step, angular_step
     refinement = 0
     candidate = np.empty(3)
     best_pose = pose.copy()
@@ -260,13 +226,14 @@ def hill_climb(grid, hits, start, ranges, angles, max_range, s, mean, precision)
             candidate[:] = pose
             axis = move // 2
             sign = 1.0 if move % 2 == 0 else -1.0
+            offsets = current
             if axis == 2:
                 candidate[2] += sign * astep
                 beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, turned)
-                value, hit = log_target(grid, hits, candidate, turned, n, s, mean, precision)
+                offsets = turned
             else:
                 candidate[axis] += sign * lstep
-                value, hit = log_target(grid, hits, candidate, current, n, s, mean, precision)
+            value, hit = _objective(coarse_stage, grid, hits, coarse, candidate, offsets, n, s, mean, precision)
             if value > best:
                 best, matched = value, hit
                 best_pose[:] = candidate
@@ -277,11 +244,27 @@ def hill_climb(grid, hits, start, ranges, angles, max_range, s, mean, precision)
             pose[:] = best_pose
         else:
             refinement += 1
-            if refinement > s.refinements:
+            if refinement > refinements:
                 break
             lstep *= 0.5
             astep *= 0.5
     return pose, best, matched
+
+
+@nb.njit(cache=True)
+def hill_climb(grid, hits, start, ranges, angles, max_range, s, mean, precision):
+    """The fine climb on the proposal's log-density. Returns (best pose, its log-density, its matched beams)."""
+    return _climb(False, grid, hits, np.zeros((1, 1), dtype=np.int32), start, ranges, angles, max_range, s, mean,
+                  precision, s.linear_step, s.angular_step, s.refinements)
+
+
+@nb.njit(cache=True)
+def coarse_climb(coarse, start, ranges, angles, max_range, s):
+    """The coarse climb on :func:`coarse_score` (no motion prior), steps halved twice; returns the pose."""
+    pose, _, _ = _climb(True, np.zeros((1, 1), dtype=np.int8), np.zeros((1, 1, 3), dtype=np.int8), coarse, start,
+                        ranges, angles, max_range, s, start, np.zeros((3, 3)), s.coarse_linear_step,
+                        s.coarse_angular_step, 2)
+    return pose
 
 
 @nb.njit(cache=True)
