@@ -323,11 +323,9 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
         grid, cell_hits = codes[i], hits[i]
         best_pose, _ = match(grid, cell_hits, coarse[i], motion_samples[i], climb_ranges, climb_angles,
                              max_range, s, motion_means[i], motion_precisions[i])
-        for t in range(3):
-            n = beam_offsets(best_pose[2] + (t - 1) * astep, ranges, angles, max_range, s.resolution, offsets[t])
-        _, matched = scan_loglik(grid, cell_hits, (best_pose[0] - s.origin_x) / s.resolution,
-                                 (best_pose[1] - s.origin_y) / s.resolution, offsets[1], n, s.window, s.cap2,
-                                 s.scale)
+        n = beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, offsets[1])
+        centre, matched = log_target(grid, cell_hits, best_pose, offsets[1], n, s, motion_means[i],
+                                     motion_precisions[i])
         matched_flags[i] = matched >= min_matched
         if not matched_flags[i]:
             n = beam_offsets(motion_samples[i, 2], ranges, angles, max_range, s.resolution, offsets[0])
@@ -337,8 +335,11 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
             new_poses[i] = motion_samples[i]
             log_increments[i] = s.exponent * ll
             continue
-        top = -np.inf
-        for k in range(7):
+        beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
+        beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
+        scores[0] = centre + motion_lognorms[i]
+        top = scores[0]
+        for k in range(1, 7):
             for axis in range(3):
                 pose[axis] = best_pose[axis] + stencil[k, axis]
             t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)

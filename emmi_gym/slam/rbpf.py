@@ -204,6 +204,9 @@ class RBPF:
         precisions, lognorms = self._motion_gaussians(sd)
         matching_ranges = self._matching_ranges(ranges)
         climb, likelihood = self._beam_subsets(angles)
+        climb_ranges, climb_angles = np.ascontiguousarray(matching_ranges[climb]), np.ascontiguousarray(angles[climb])
+        beam_ranges = np.ascontiguousarray(matching_ranges[likelihood])
+        beam_angles = np.ascontiguousarray(angles[likelihood])
         new_poses = np.empty_like(self.poses)
         increments = np.empty(m)
         matched = np.zeros(m, dtype=np.bool_)
@@ -211,8 +214,8 @@ class RBPF:
         settings = _matching.match_settings(cfg, g.origin_x, g.origin_y, g.resolution, self.maps.block)
         _matching.improved_proposal(
             self.maps.codes, self.maps.hits, self.maps.coarse, samples, means, precisions, lognorms,
-            proposal_normals, matching_ranges[climb], angles[climb], matching_ranges[likelihood], angles[likelihood],
-            self.max_range, settings, new_poses, increments, matched)
+            proposal_normals, climb_ranges, climb_angles, beam_ranges, beam_angles, self.max_range, settings,
+            new_poses, increments, matched)
         self.poses = new_poses
         t1 = time.perf_counter()
         phases["scan_matching"] = t1 - t0
