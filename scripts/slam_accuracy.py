@@ -7,7 +7,10 @@ the best particle's ATE (unaligned: the filter starts at the true start pose, as
 dead reckoning does; and aligned), dead reckoning's ATE, the best map's accuracy
 against the ground truth (raw and registered by the path's alignment), and whether
 the loop closure shows in the metrics (EMMI higher 4 updates after re-entering the
-start area than just before; Neff < 0.8 M or a resampling within 3 before to 7 after).
+start area than just before; Neff < 0.8 M or a resampling within 3 before to 7 after;
+EMMI's largest rise of the second half of the loop, from the left corridor on, within 5
+updates of it; the first scans raise EMMI more than anything), and how many resamplings
+came before it.
 """
 
 from __future__ import annotations
@@ -59,7 +62,9 @@ def main() -> None:
             map_accuracy(slam.best_map(), truth_grid),
             map_accuracy(slam.best_map(), truth_grid, geometry=geometry, transform=trajectory_alignment(best, truth)),
             emmi[min(close + 4, len(emmi) - 1)] > emmi[close - 1],
-            any(m.resampled or m.neff < 0.8 * args.particles for m in window)))
+            any(m.resampled or m.neff < 0.8 * args.particles for m in window),
+            sum(m.resampled for m in metrics[:max(close - 3, 0)]),
+            abs(left + 1 + int(np.argmax(np.diff(emmi[left:]))) - close) <= 5))
         print(f"seed {seed:2d}: ATE {rows[-1][0]:.3f} m (dead reckoning {rows[-1][1]:.2f} m), "
               f"map accuracy {rows[-1][3]:.3f} (registered {rows[-1][4]:.3f})", flush=True)
     r = np.array(rows, dtype=float)
@@ -70,7 +75,9 @@ def main() -> None:
           f"worst ratio best / dead reckoning {(r[:, 0] / r[:, 1]).max():.2f}")
     print(f"map accuracy: median {np.median(r[:, 3]):.3f} (min {r[:, 3].min():.3f}); registered median "
           f"{np.median(r[:, 4]):.3f} (min {r[:, 4].min():.3f}), >= 0.90 on {int(np.sum(r[:, 4] >= 0.9))} of {n}")
-    print(f"loop closure: EMMI up on {int(r[:, 5].sum())} of {n}; Neff drop or resampling on {int(r[:, 6].sum())} of {n}")
+    print(f"loop closure: EMMI up on {int(r[:, 5].sum())} of {n}; Neff drop or resampling on {int(r[:, 6].sum())} of {n}; "
+          f"EMMI's largest rise (second half) within 5 updates of it on {int(r[:, 8].sum())} of {n}")
+    print(f"resamplings before the closure: none on {int(np.sum(r[:, 7] == 0))} of {n} (median {np.median(r[:, 7]):.0f})")
 
 
 if __name__ == "__main__":
