@@ -152,18 +152,55 @@ def test_fig4_mi_is_nearly_resolution_independent_while_entropy_grows():
 # ------------------------------------------------------------------ machinery
 
 
-def test_resampling_copies_grids_by_index():
-    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 4, 5), 3, CellCodes.from_config(RBPFConfig()))
-    for i in range(3):
-        maps.codes[i] = i
-        maps.hits[i] = 10 * i
-        maps.counts[i] = i
-    maps.resample(np.array([2, 2, 0]))
-    assert [int(maps.counts[i, 0]) for i in range(3)] == [2, 2, 0]
-    assert [int(maps.codes[i, 0, 0]) for i in range(3)] == [2, 2, 0]
-    assert [int(maps.hits[i, 1, 1, 0]) for i in range(3)] == [20, 20, 0]
-    maps.codes[0, 0, 0] = 5  # copies are independent
-    assert maps.codes[1, 0, 0] == 2
+def random_scans(rng, maps, n_scans):
+    """Insert ``n_scans`` random 60-beam scans, each at its own random pose per particle."""
+    angles = np.linspace(-np.pi, np.pi, 60, endpoint=False)
+    x0, x1, y0, y1 = maps.geometry.extent
+    for _ in range(n_scans):
+        poses = np.column_stack([rng.uniform(x0 + 1, x1 - 1, maps.n_particles),
+                                 rng.uniform(y0 + 1, y1 - 1, maps.n_particles),
+                                 rng.uniform(-np.pi, np.pi, maps.n_particles)])
+        maps.insert(poses, rng.uniform(0.3, 2.5, 60), angles, 3.0, 0.0)
+
+
+def assert_agreement_is_exact(maps):
+    """The kept agreement equals one derived from scratch: same disputed cells, same agreed histogram."""
+    same = np.all(maps.codes == maps.codes[:1], axis=0) & np.all(maps.hits == maps.hits[:1], axis=(0, 3))
+    np.testing.assert_array_equal(maps.disputed_cells, np.flatnonzero(~same))
+    np.testing.assert_array_equal(maps.agreed_counts, np.bincount(maps.codes[0][same].astype(np.int64) + 128,
+                                                                   minlength=256))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_incremental_emmi_equals_a_full_recomputation(seed):
+    """After random insertions, resamplings and a growth of the grids, EMMI from the agreed cells'
+    histogram plus the disputed cells equals EMMI over every cell of every grid, and the expected
+    map too; resampling copies exactly what np.take of whole grids would."""
+    rng = np.random.default_rng(seed)
+    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 60, 70), 5, CellCodes.from_config(RBPFConfig()), block=2)
+    lut = maps.cell_codes.probability
+    for step in range(6):
+        random_scans(rng, maps, 2)
+        if step % 2:
+            parents = rng.integers(0, 5, 5)
+            before = maps.codes.copy(), maps.hits.copy(), maps.counts.copy()
+            maps.resample(parents)
+            np.testing.assert_array_equal(maps.codes, before[0][parents])
+            np.testing.assert_array_equal(maps.hits, before[1][parents])
+            np.testing.assert_array_equal(maps.counts, before[2][parents])
+        if step == 3:
+            maps.grow_to_contain(-0.5, -0.5, 7.5, 6.5, chunk=1.0)
+        assert_agreement_is_exact(maps)
+        w = rng.random(5) ** 2
+        w /= w.sum()
+        full = certainty.emmi(maps.codes, w, lut=lut)
+        assert certainty.emmi_of_parts(maps.codes, maps.disputed_cells, w, maps.agreed_counts, lut=lut) == pytest.approx(
+            full, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(maps.expected_map(w), certainty.expected_map(maps.codes, w, lut=lut),
+                                   rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(maps.coarse, [[[int((g[r:r + 2, c:c + 2] > 0).sum()) for c in range(0, g.shape[1], 2)]
+                                                     for r in range(0, g.shape[0], 2)] for g in maps.codes])
+    assert 0 < maps.disputed_cells.size < maps.codes[0].size
 
 
 def test_grids_grow_in_chunks_and_keep_cells_aligned():

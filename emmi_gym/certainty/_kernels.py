@@ -68,6 +68,20 @@ def expected_map_codes(grids, weights, lut, offset, out):
 
 
 @nb.njit(cache=True)
+def expected_map_codes_at(grids, cells, weights, lut, offset, out):
+    """EM, eq. (6), of integer-coded grids (M, N) at the flat indices ``cells`` only:
+    out[k] = sum_i w_i lut[code_i,cells[k] + offset]. Cells in increasing order read
+    the M grids front to back."""
+    m = grids.shape[0]
+    for k in range(cells.size):
+        c = cells[k]
+        acc = 0.0
+        for i in range(m):
+            acc += weights[i] * lut[np.int64(grids[i, c]) + offset]
+        out[k] = acc
+
+
+@nb.njit(cache=True)
 def information_kernel(p, max_entropy_bits, unobserved_halfwidth):
     """Map information sum of (1 - H2), eq. (9), and the observed-cell count of eq. (10).
 

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _kernels
 from .grids import ParticleGrids
-from .information import DEFAULT_OBSERVED_TOL, information_and_observed
+from .information import DEFAULT_OBSERVED_TOL, cell_information, information_and_observed, observed_cells
 from .weights import normalize_weights
 
 
@@ -33,6 +34,26 @@ def emmi(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool =
     """
     pg = ParticleGrids.from_arrays(grids, weights, logodds=logodds, lut=lut, log_weights=log_weights)
     info, n_obs = information_and_observed(pg.expected_map_flat(), observed_tol)
+    return info / n_obs if n_obs else 0.0
+
+
+def emmi_of_parts(grids, disputed, weights, agreed_counts, *, lut, log_weights: bool = False,
+                  observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """EMMI, eq. (11), of integer-coded grids (M, H, W) whose particles agree everywhere but on the
+    cells ``disputed`` (flat indices): an agreed cell's expected map (eq. 6) is its own
+    probability whatever the weights, so those cells enter only through ``agreed_counts``
+    (how many agreed cells hold each code, indexed like ``lut``), and only the disputed ones
+    are averaged with the weights. Equal to :func:`emmi` of the whole grids, at the cost of
+    the disputed cells.
+    """
+    pg = ParticleGrids.from_arrays(grids, weights, lut=lut, log_weights=log_weights)
+    em = np.empty(len(disputed))
+    _kernels.expected_map_codes_at(pg.flat, np.asarray(disputed), pg.weights, pg.lut, pg.offset, em)
+    info, n_obs = information_and_observed(em, observed_tol)
+    counts, table = np.asarray(agreed_counts), pg.lut
+    observed = (counts > 0) & observed_cells(table, observed_tol)
+    info += float(counts[observed] @ cell_information(table[observed]))
+    n_obs += int(counts[observed].sum())
     return info / n_obs if n_obs else 0.0
 
 

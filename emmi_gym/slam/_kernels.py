@@ -109,7 +109,7 @@ def _accumulate_hit(cell, gx, gy, col, row):
 
 @nb.njit(cache=True)
 def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_lengths, ray_kinds, inc_occupied,
-                 inc_free, clamp, origin_x, origin_y, resolution, stamp, serial):
+                 inc_free, clamp, origin_x, origin_y, resolution, stamp, serial, touched):
     """Insert one scan, given as rays (see :func:`scan_rays`), into each particle's grid at its pose.
 
     Eq. (4) in log-odds with the paper's peaked model (Fig. 2): per particle and scan a
@@ -117,12 +117,15 @@ def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_leng
     ``inc_free`` if some ray crosses it before its end (exact cell traversal, Amanatides
     & Woo; a RAY_FREE ray frees its end cell too). ``stamp`` (H, W) int64
     remembers which cells this scan already touched; ``serial`` grows by 2 per particle
-    and is returned. Hit end points also update their cell's mean hit position, and
+    and is returned with the number of cells the scan touched in any grid, whose flat
+    indices go to ``touched`` (size H * W). Hit end points also update their cell's mean hit position, and
     ``counts`` (M, 256), how many cells of each grid hold each code (index code + 128),
     and ``coarse``, the occupied cells per block, follow every change.
     """
     m, h, w = codes.shape
     n_rays = ray_angles.size
+    first = serial  # stamps at or below this were left by earlier scans
+    n_touched = 0
     for i in range(m):
         grid = codes[i]
         hit_id = serial + 1
@@ -141,6 +144,9 @@ def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_leng
                 continue
             _accumulate_hit(hits[i, row, col], gx, gy, col, row)
             if stamp[row, col] != hit_id:
+                if stamp[row, col] <= first:
+                    touched[n_touched] = row * w + col
+                    n_touched += 1
                 stamp[row, col] = hit_id
                 _add_clamped(grid, counts[i], coarse[i], block, row, col, inc_occupied, clamp)
         for b in range(n_rays):
@@ -167,6 +173,9 @@ def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_leng
                 if not (0 <= cy < h and 0 <= cx < w):
                     break
                 if stamp[cy, cx] < hit_id:
+                    if stamp[cy, cx] <= first:
+                        touched[n_touched] = cy * w + cx
+                        n_touched += 1
                     stamp[cy, cx] = free_id
                     _add_clamped(grid, counts[i], coarse[i], block, cy, cx, inc_free, clamp)
                 if t_x < t_y:
@@ -175,4 +184,81 @@ def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_leng
                 else:
                     cy += step_y
                     t_y += t_dy
-    return serial
+    return serial, n_touched
+
+
+#: ``status`` of a cell on which the particles' grids differ (agreeing cells hold their common code).
+DISPUTED = 1000
+
+
+@nb.njit(cache=True, inline="always")
+def _agrees(codes, hits, row, col):
+    """Whether every particle's grid holds the same code and the same mean hit point at (row, col)."""
+    c0 = codes[0, row, col]
+    for i in range(1, codes.shape[0]):
+        if codes[i, row, col] != c0:
+            return False
+        for k in range(3):
+            if hits[i, row, col, k] != hits[0, row, col, k]:
+                return False
+    return True
+
+
+@nb.njit(cache=True)
+def refresh_agreement(codes, hits, cells, status, agreed_counts, disputed, n_disputed, position):
+    """Re-derive whether the particles agree on each cell of ``cells`` (flat indices, no repeats).
+
+    ``status`` (H, W) int16 holds an agreed cell's code, or DISPUTED; ``agreed_counts``
+    (256) how many agreed cells hold each code (index code + 128); ``disputed[:n_disputed]``
+    lists the disputed cells (flat indices, any order) and ``position`` (H, W) each one's
+    place in that list (-1: not listed). Returns the new length of the list.
+    """
+    w = codes.shape[2]
+    for k in range(cells.size):
+        cell = cells[k]
+        row = cell // w
+        col = cell - row * w
+        old = status[row, col]
+        if old != DISPUTED:
+            agreed_counts[old + 128] -= 1
+        if _agrees(codes, hits, row, col):
+            code = codes[0, row, col]
+            status[row, col] = code
+            agreed_counts[code + 128] += 1
+            p = position[row, col]
+            if p >= 0:  # unlist: the last entry takes its place
+                n_disputed -= 1
+                last = disputed[n_disputed]
+                disputed[p] = last
+                position[last // w, last - (last // w) * w] = p
+                position[row, col] = -1
+        else:
+            status[row, col] = DISPUTED
+            if position[row, col] < 0:
+                disputed[n_disputed] = cell
+                position[row, col] = n_disputed
+                n_disputed += 1
+    return n_disputed
+
+
+@nb.njit(cache=True)
+def resample_cells(codes, hits, coarse, block, cells, parents):
+    """Particle i takes particle ``parents[i]``'s code and mean hit point at each of ``cells`` (flat
+    indices), keeping the occupied-cell counts per block ``coarse`` current. Elsewhere every
+    grid already holds the same values, so nothing else needs copying."""
+    m, _, w = codes.shape
+    old_codes = np.empty(m, dtype=codes.dtype)
+    old_hits = np.empty((m, 3), dtype=hits.dtype)
+    for k in range(cells.size):
+        cell = cells[k]
+        row = cell // w
+        col = cell - row * w
+        for i in range(m):
+            old_codes[i] = codes[i, row, col]
+            old_hits[i] = hits[i, row, col]
+        for i in range(m):
+            new = old_codes[parents[i]]
+            if (old_codes[i] > 0) != (new > 0):
+                coarse[i, row // block, col // block] += 1 if new > 0 else -1
+            codes[i, row, col] = new
+            hits[i, row, col] = old_hits[parents[i]]

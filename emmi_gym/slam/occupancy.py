@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from .. import certainty
 from ..grid import GridGeometry
 from . import _kernels
 from .sensor_model import CellCodes
@@ -36,11 +37,17 @@ class ParticleMaps:
     and ``coarse`` (M, ceil(H / block), ceil(W / block)) how many cells of each block of
     ``block x block`` cells are occupied (the scan matcher's coarse level), both kept
     current by the insertion, so that a map's entropy and mean information need
-    no pass over its cells; ``touched`` the box (row0, row1, col0, col1) of the cells
-    any scan may have reached: outside it every grid is unknown.
-    Resampling copies the chosen particles into spare arrays with ``np.take`` and swaps
-    them in (one pass over memory, no allocation). The extent can grow in chunks (for
-    logs whose size is not known in advance); growing keeps cells aligned.
+    no pass over its cells.
+
+    The maps also know where the particles **agree** (every grid holds the same code and
+    mean hit point): ``status`` (H, W) holds an agreed cell's code or ``DISPUTED``,
+    ``agreed_counts`` the code histogram of the agreed cells, and a list the disputed
+    cells, all re-derived after each scan for the cells it touched. An agreed cell's
+    expected map is its own probability whatever the weights, so EMMI and the expected
+    map need a pass over the disputed cells only, and resampling copies only those:
+    an update costs what the particles disagree on, not the grids' extent. The extent
+    can grow in chunks (for logs whose size is not known in advance); growing keeps
+    cells aligned.
     """
 
     def __init__(self, geometry: GridGeometry, n_particles: int, codes: CellCodes, block: int = 1):
@@ -53,15 +60,27 @@ class ParticleMaps:
                                dtype=np.int32)
         self.counts = np.zeros((n_particles, 256), dtype=np.int64)
         self.counts[:, 128] = geometry.rows * geometry.cols
-        self.touched: tuple[int, int, int, int] | None = None
-        self._spare_codes = np.zeros_like(self.codes)  # unknown outside the touched box, as the grids
-        self._spare_hits = np.zeros_like(self.hits)
+        self.status = np.zeros(geometry.shape, dtype=np.int16)
+        self.agreed_counts = self.counts[0].copy()
+        self._position = np.full(geometry.shape, -1, dtype=np.int32)
+        self._disputed = np.empty(geometry.rows * geometry.cols, dtype=np.int32)
+        self._n_disputed = 0
+        self._touched = np.empty(geometry.rows * geometry.cols, dtype=np.int32)
         self._stamp = np.zeros(geometry.shape, dtype=np.int64)
         self._serial = 0
 
     @property
     def n_particles(self) -> int:
         return self.codes.shape[0]
+
+    @property
+    def disputed_cells(self) -> np.ndarray:
+        """Flat indices of the cells on which the particles' grids differ (a view, increasing)."""
+        return self._disputed[:self._n_disputed]
+
+    def disputed_codes(self) -> np.ndarray:
+        """(M, N) codes of the disputed cells."""
+        return self.codes.reshape(self.n_particles, -1)[:, self.disputed_cells]
 
     def insert(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range: float,
                free_range: float, insertion_range: float | None = None, depth_jump: float = 0.3) -> None:
@@ -77,41 +96,37 @@ class ParticleMaps:
         free_lengths = np.where(ranges >= max_range, min(free_range, hit_range), hit_range)
         rays = _kernels.scan_rays(ranges, angles, beam_gaps(angles), hit_range, free_lengths, g.resolution,
                                   depth_jump)
-        self._serial = _kernels.insert_scans(self.codes, self.hits, self.counts, self.coarse, self.block, poses,
-                                             *rays, c.occupied, c.free, c.clamp, g.origin_x, g.origin_y,
-                                             g.resolution, self._stamp, self._serial)
-        # every ray is a segment from a pose to its end point: their box holds every cell touched
-        heading = poses[:, 2:3] + rays[0][None, :]
-        xs = np.concatenate([poses[:, 0], (poses[:, 0:1] + rays[1] * np.cos(heading)).ravel()])
-        ys = np.concatenate([poses[:, 1], (poses[:, 1:2] + rays[1] * np.sin(heading)).ravel()])
-        rows, cols = g.cell_of(np.array([xs.min(), xs.max()]), np.array([ys.min(), ys.max()]))
-        box = (max(int(rows[0]) - 1, 0), min(int(rows[1]) + 2, g.rows),
-               max(int(cols[0]) - 1, 0), min(int(cols[1]) + 2, g.cols))
-        if self.touched is not None:
-            box = (min(box[0], self.touched[0]), max(box[1], self.touched[1]),
-                   min(box[2], self.touched[2]), max(box[3], self.touched[3]))
-        self.touched = box
+        self._serial, n_touched = _kernels.insert_scans(
+            self.codes, self.hits, self.counts, self.coarse, self.block, poses, *rays, c.occupied, c.free, c.clamp,
+            g.origin_x, g.origin_y, g.resolution, self._stamp, self._serial, self._touched)
+        self._refresh(self._touched[:n_touched])
 
-    def touched_codes(self) -> np.ndarray:
-        """The (M, h, w) view of the codes inside the touched box (everything, before any scan)."""
-        if self.touched is None:
-            return self.codes
-        r0, r1, c0, c1 = self.touched
-        return self.codes[:, r0:r1, c0:c1]
+    def _refresh(self, cells: np.ndarray) -> None:
+        """Re-derive the agreement of ``cells``, then keep the disputed list in memory order (passes over
+        it then read the grids front to back; timsort takes the mostly sorted list in near-linear time)."""
+        self._n_disputed = _kernels.refresh_agreement(self.codes, self.hits, cells, self.status, self.agreed_counts,
+                                                      self._disputed, self._n_disputed, self._position)
+        listed = self.disputed_cells
+        listed.sort(kind="stable")
+        self._position.reshape(-1)[listed] = np.arange(listed.size, dtype=np.int32)
 
     def resample(self, indices: np.ndarray) -> None:
-        """Particle i takes the grid of particle ``indices[i]``.
-
-        Only the touched box is copied: outside it every grid (and the spare arrays) is
-        still unknown, so the copy costs the explored area, not the grids' extent.
-        """
-        r0, r1, c0, c1 = self.touched or (0, self.geometry.rows, 0, self.geometry.cols)
-        np.take(self.codes[:, r0:r1, c0:c1], indices, axis=0, out=self._spare_codes[:, r0:r1, c0:c1])
-        np.take(self.hits[:, r0:r1, c0:c1], indices, axis=0, out=self._spare_hits[:, r0:r1, c0:c1])
+        """Particle i takes the grid of particle ``indices[i]``: only the disputed cells are copied
+        (elsewhere all grids already hold the same values), then their agreement is re-derived."""
+        indices = np.ascontiguousarray(indices, dtype=np.int64)
+        cells = self.disputed_cells.copy()
+        _kernels.resample_cells(self.codes, self.hits, self.coarse, self.block, cells, indices)
         self.counts = self.counts[indices]
-        self.coarse = self.coarse[indices]
-        self.codes, self._spare_codes = self._spare_codes, self.codes
-        self.hits, self._spare_hits = self._spare_hits, self.hits
+        self._refresh(cells)
+
+    def expected_map(self, weights: np.ndarray) -> np.ndarray:
+        """EM, eq. (6), (H, W) float64, for normalised ``weights``: an agreed cell's own probability, the
+        weighted average over the disputed cells."""
+        table = self.cell_codes.probability
+        em = table[np.where(self.status == _kernels.DISPUTED, 0, self.status).astype(np.int64) + 128]
+        if self._n_disputed:
+            em.reshape(-1)[self.disputed_cells] = certainty.expected_map(self.disputed_codes(), weights, lut=table)
+        return em
 
     def probabilities(self, particle: int) -> np.ndarray:
         """Occupancy probabilities (H, W) of one particle's grid."""
@@ -135,14 +150,18 @@ class ParticleMaps:
         self.codes = np.pad(self.codes, pad)
         self.hits = np.pad(self.hits, pad + ((0, 0),))
         self.coarse = np.pad(self.coarse, ((0, 0),) + tuple((a // self.block, b // self.block) for a, b in pad[1:]))
-        self.counts[:, 128] += self.codes.shape[1] * self.codes.shape[2] - g.rows * g.cols
-        if self.touched is not None:
-            r0, r1, c0, c1 = self.touched
-            self.touched = (r0 + down * cells, r1 + down * cells, c0 + left * cells, c1 + left * cells)
-        self._spare_codes = np.zeros_like(self.codes)
-        self._spare_hits = np.zeros_like(self.hits)
+        added = self.codes.shape[1] * self.codes.shape[2] - g.rows * g.cols
+        self.counts[:, 128] += added
+        self.agreed_counts[128] += added
+        rows, cols = np.divmod(self.disputed_cells.astype(np.int64), g.cols)
+        self.status = np.pad(self.status, pad[1:])
+        self._position = np.pad(self._position, pad[1:], constant_values=-1)
         self._stamp = np.pad(self._stamp, pad[1:])
         self.geometry = GridGeometry(g.resolution, g.origin_x - left * cells * g.resolution,
                                      g.origin_y - down * cells * g.resolution, self.codes.shape[1],
                                      self.codes.shape[2])
+        n = self._n_disputed
+        self._disputed = np.empty(self.geometry.rows * self.geometry.cols, dtype=np.int32)
+        self._disputed[:n] = (rows + down * cells) * self.geometry.cols + cols + left * cells
+        self._touched = np.empty_like(self._disputed)
         return True

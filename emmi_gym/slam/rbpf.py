@@ -127,9 +127,8 @@ class RBPF:
         return compose_local(base, local_delta(self._last_odometry, np.asarray(odometry_pose, dtype=np.float64)))
 
     def expected_map(self) -> np.ndarray:
-        """EM, eq. (6): probability grid (H, W)."""
-        return certainty.expected_map(self.maps.codes, self.log_weights, lut=self.cell_codes.probability,
-                                      log_weights=True)
+        """EM, eq. (6): probability grid (H, W), averaged over the cells the particles dispute only."""
+        return self.maps.expected_map(self.weights)
 
     def best_map(self) -> np.ndarray:
         return self.maps.probabilities(self.best)
@@ -295,9 +294,10 @@ class RBPF:
     def _measure(self, timestamp: float, resampled: bool, matched: float, phases: dict) -> UpdateMetrics:
         """Every certainty measure of the particle set, through :mod:`emmi_gym.certainty`.
 
-        EMMI is computed over the box of cells any scan reached (all grids are unknown,
-        so uninformative, elsewhere); map entropies and the best map's mean information
-        come from the grids' code histograms, which the insertion keeps current.
+        EMMI needs a pass over the cells the particles dispute only (the agreed cells
+        enter through their code histogram, :func:`certainty.emmi_of_parts`); map
+        entropies and the best map's mean information come from the grids' code
+        histograms. All are kept current by the insertion and the resampling.
         """
         t0 = time.perf_counter()
         lut, counts = self.cell_codes.probability, self.maps.counts
@@ -305,7 +305,8 @@ class RBPF:
         path_entropy = certainty.path_entropy(self.paths, w)
         metrics = UpdateMetrics(
             step=self.step, time=timestamp,
-            emmi=certainty.emmi(self.maps.touched_codes(), w, lut=lut),
+            emmi=certainty.emmi_of_parts(self.maps.codes, self.maps.disputed_cells, w, self.maps.agreed_counts,
+                                         lut=lut),
             mean_information_best=certainty.mean_information_of_code_counts(counts[self.best], lut),
             pose_entropy=certainty.pose_entropy(self.poses, w),
             weight_entropy=certainty.weight_entropy(w),
