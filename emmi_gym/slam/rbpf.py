@@ -250,15 +250,14 @@ class RBPF:
         return np.where(ranges > limit, self.max_range, ranges)
 
     def _beam_subsets(self, angles: np.ndarray) -> tuple[slice, slice]:
-        """Every n-th beam for hill-climbing and for the likelihood, n from the beam spacing wanted."""
+        """Every n-th beam for hill-climbing (about ``match_climb_beams`` of them) and for the likelihood
+        (beams ``likelihood_beam_spacing`` apart)."""
         if angles.size < 2:
             return slice(None), slice(None)
         step = float(angles[-1] - angles[0]) / (angles.size - 1)
-
-        def every(spacing: float) -> slice:
-            return slice(None, None, max(1, int(round(spacing / step))))
-
-        return every(self.config.match_climb_spacing), every(self.config.likelihood_beam_spacing)
+        climb = max(1, angles.size // self.config.match_climb_beams)
+        likelihood = max(1, int(round(self.config.likelihood_beam_spacing / step)))
+        return slice(None, None, climb), slice(None, None, likelihood)
 
     def _motion_precisions(self, sd: np.ndarray) -> np.ndarray:
         """Precision matrices of the motion model in the world frame, per particle: the robot-frame
