@@ -49,7 +49,7 @@ class RBPFConfig:
     match_radius: float = 0.15            # beyond this an end point counts as unmatched
     # beams used while hill-climbing, evenly spread over the scan (GMapping climbs on all of
     # them; with 30 of a 180-degree scan the heading wanders and ACES is lost)
-    match_climb_beams: int = 90
+    match_climb_beams: int = 60
     coarse_resolution: float = 0.2        # block side of the coarse stage (a whole number of cells)
     coarse_angular_step: float = 0.05     # first heading step of the coarse climb
     coarse_trigger: float = 0.6           # run the coarse stage below this fraction of matched beams
@@ -59,12 +59,13 @@ class RBPFConfig:
     # and their errors are not independent (Thrun et al. 2005, sec. 6.4, subsample the beams)
     likelihood_beam_spacing: float = 0.035
     min_match_fraction: float = 0.3       # fall back to odometry below this fraction of matched beams
-    # weights: an exponent on the likelihood (MRPT's powFactor; GMapping's 1 / (ogain * M)).
-    # Measured (scripts/slam_accuracy.py, 20 seeds): at 0.0075 plain corridor driving alone
-    # drove Neff to M / 2 before the loop_corridor loop closed (resampling then on 20 of
-    # 20 seeds); at 0.003 no resampling before the closure on 19 of 20, Neff drops at it
-    # on 19 of 20; at 0.0015 the closure no longer shows in Neff.
-    likelihood_exponent: float = 0.003
+    # weights: an exponent on the likelihood (MRPT's powFactor; GMapping's 1 / (ogain * M)),
+    # chosen by measurement (docs/slam.md): at 0.003 the loop_corridor loop closes without a
+    # resampling before it on 19 of 20 seeds, but the closure then resolves too little of
+    # the particles' disagreement for the A/B experiment to see it in EMMI; at 0.0075 it
+    # does (and ACES and Intel end 0.05-0.26 m off), at the price of about one resampling
+    # before the closure.
+    likelihood_exponent: float = 0.0075
     resample_threshold: float = 0.5       # resample when Neff / M < this
 
     def __post_init__(self):
