@@ -288,7 +288,7 @@ def match(grid, hits, coarse, start, climb_ranges, climb_angles, max_range, s, m
 
 
 @nb.njit(cache=True)
-def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_precisions,
+def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_precisions, motion_lognorms,
                       normals, climb_ranges, climb_angles, ranges, angles, max_range, s,
                       new_poses, log_increments, matched_flags):
     """The improved proposal of GMapping (Grisetti et al. 2007, eqs. 18-20), for every particle.
@@ -298,17 +298,14 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
     (``climb_*``: the beams used while climbing). If at least ``min_matched`` of the
     likelihood beams (``ranges``, ``angles``: decimated, since neighbouring beams' errors
     are not independent) match there, evaluate L on x* and x* +- one step along x, y and
-    theta, fit a Gaussian weighted by exp(L) and draw the new pose from it with ``normals``.
-
-    The weight grows by ``exponent`` times the log of the scan's mean likelihood over those
-    seven poses, as GMapping's ``ScanMatcher::likelihood`` normalises over a small grid of
-    poses round the match, without the odometry term: the weights then measure how well
-    the scan fits each particle's map, not how far its match moved from its own odometry
-    sample. Without a match the particle keeps x' and the weight grows by ``exponent *
-    loglik(x')``, the same average estimated by one sample.
+    theta, fit a Gaussian weighted by exp(L), draw the new pose from it with ``normals``,
+    and add ``exponent * log(eta)`` to the log-weight, eta = sum exp(L) * step volume
+    (eq. 20). Otherwise keep x' and add ``exponent * loglik(x')``: the same integral
+    estimated by the one sample drawn from the motion model.
     """
     m = codes.shape[0]
     lstep, astep = s.linear_step, s.angular_step
+    log_volume = math.log(lstep * lstep * astep)
     offsets = np.empty((3, ranges.size, 4))  # beam offsets at headings x* - step, x*, x* + step
     stencil = np.zeros((7, 3))
     for axis in range(3):
@@ -321,16 +318,14 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
             n_likelihood += 1
     min_matched = max(1, int(math.ceil(s.min_matched * n_likelihood)))
     scores = np.empty(7)
-    likelihoods = np.empty(7)
     pose = np.empty(3)
     for i in range(m):
         grid, cell_hits = codes[i], hits[i]
         best_pose, _ = match(grid, cell_hits, coarse[i], motion_samples[i], climb_ranges, climb_angles,
                              max_range, s, motion_means[i], motion_precisions[i])
         n = beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, offsets[1])
-        ll, matched = scan_loglik(grid, cell_hits, (best_pose[0] - s.origin_x) / s.resolution,
-                                  (best_pose[1] - s.origin_y) / s.resolution, offsets[1], n, s.window, s.cap2,
-                                  s.scale)
+        centre, matched = log_target(grid, cell_hits, best_pose, offsets[1], n, s, motion_means[i],
+                                     motion_precisions[i])
         matched_flags[i] = matched >= min_matched
         if not matched_flags[i]:
             n = beam_offsets(motion_samples[i, 2], ranges, angles, max_range, s.resolution, offsets[0])
@@ -342,27 +337,22 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
             continue
         beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
         beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
-        top = -np.inf
-        top_likelihood = -np.inf
-        for k in range(7):
+        scores[0] = centre + motion_lognorms[i]
+        top = scores[0]
+        for k in range(1, 7):
             for axis in range(3):
                 pose[axis] = best_pose[axis] + stencil[k, axis]
-            if k > 0:
-                t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
-                ll, _ = scan_loglik(grid, cell_hits, (pose[0] - s.origin_x) / s.resolution,
-                                    (pose[1] - s.origin_y) / s.resolution, offsets[t], n, s.window, s.cap2, s.scale)
-            likelihoods[k] = ll
-            scores[k] = ll - 0.5 * _prior_quadratic(pose[0], pose[1], pose[2], motion_means[i], motion_precisions[i])
-            top = max(top, scores[k])
-            top_likelihood = max(top_likelihood, ll)
+            t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
+            value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, motion_means[i], motion_precisions[i])
+            scores[k] = value + motion_lognorms[i]
+            if scores[k] > top:
+                top = scores[k]
         total = 0.0
-        mean_likelihood = 0.0
         mean = np.zeros(3)
         for k in range(7):
             scores[k] = math.exp(scores[k] - top)
             total += scores[k]
             mean += scores[k] * stencil[k]
-            mean_likelihood += math.exp(likelihoods[k] - top_likelihood) / 7.0
         mean /= total
         cov = np.zeros((3, 3))
         for k in range(7):
@@ -376,4 +366,4 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
         new_poses[i, 0] = best_pose[0] + draw[0]
         new_poses[i, 1] = best_pose[1] + draw[1]
         new_poses[i, 2] = (best_pose[2] + draw[2] + math.pi) % (2.0 * math.pi) - math.pi
-        log_increments[i] = s.exponent * (top_likelihood + math.log(mean_likelihood))
+        log_increments[i] = s.exponent * (top + math.log(total) + log_volume)

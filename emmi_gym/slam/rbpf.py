@@ -200,7 +200,7 @@ class RBPF:
         sd = local_motion_std(motion, cfg.motion_noise)
         samples = compose_local(self.poses, motion + motion_normals * sd)
         means = compose_local(self.poses, motion)
-        precisions = self._motion_precisions(sd)
+        precisions, lognorms = self._motion_gaussians(sd)
         matching_ranges = self._matching_ranges(ranges)
         climb, likelihood = self._beam_subsets(angles)
         climb_ranges, climb_angles = np.ascontiguousarray(matching_ranges[climb]), np.ascontiguousarray(angles[climb])
@@ -212,7 +212,7 @@ class RBPF:
         g = self.geometry
         settings = _matching.match_settings(cfg, g.origin_x, g.origin_y, g.resolution, self.maps.block)
         _matching.improved_proposal(
-            self.maps.codes, self.maps.hits, self.maps.coarse, samples, means, precisions,
+            self.maps.codes, self.maps.hits, self.maps.coarse, samples, means, precisions, lognorms,
             proposal_normals, climb_ranges, climb_angles, beam_ranges, beam_angles, self.max_range, settings,
             new_poses, increments, matched)
         self.poses = new_poses
@@ -259,15 +259,16 @@ class RBPF:
         likelihood = max(1, int(round(self.config.likelihood_beam_spacing / step)))
         return slice(None, None, climb), slice(None, None, likelihood)
 
-    def _motion_precisions(self, sd: np.ndarray) -> np.ndarray:
-        """Precision matrices of the motion model in the world frame, per particle: the robot-frame
-        deviations ``sd`` (dx, dy, dtheta) turned by each particle's heading."""
+    def _motion_gaussians(self, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Precision matrices and log-normalisers of the motion model in the world frame, per particle:
+        the robot-frame deviations ``sd`` (dx, dy, dtheta) turned by each particle's heading."""
         m = self.poses.shape[0]
         c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
         rot = np.zeros((m, 3, 3))
         rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = c, -s, s, c, 1.0
         cov = rot @ np.diag(sd ** 2) @ rot.transpose(0, 2, 1) + np.diag(_MOTION_FLOOR ** 2)
-        return np.ascontiguousarray(np.linalg.inv(cov))
+        sign, logdet = np.linalg.slogdet(cov)
+        return np.ascontiguousarray(np.linalg.inv(cov)), -0.5 * (3 * math.log(2 * math.pi) + logdet)
 
     def _resample(self, indices: np.ndarray) -> None:
         self.maps.resample(indices)
