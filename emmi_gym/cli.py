@@ -53,9 +53,9 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from .slam.replay import replay, write_outputs
 
     log = read_log(args.log, skip_bad_lines=args.skip_bad_lines, flaser_fov=math.radians(args.flaser_fov))
-    options = {} if args.motion_noise is None else {"motion_noise": tuple(args.motion_noise)}
-    config = RBPFConfig(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,
-                        matching_range=args.matching_range, **options)
+    options = dict(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,
+                   matching_range=args.matching_range)
+    config = RBPFConfig(**options) if args.preset is None else RBPFConfig.preset(args.preset, **options)
     result = replay(log, config, max_range=args.max_range, seed=args.seed, progress=not args.quiet,
                     every_scan=args.every_scan)
     if not result.rows:
@@ -271,9 +271,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--every-scan", action="store_true",
                      help="make every scan an update (logs of keyframes; default: after 0.5 m or 0.3 rad)")
     rep.add_argument("--flaser-fov", type=float, default=180.0, help="field of view of FLASER lines, degrees")
-    rep.add_argument("--motion-noise", type=float, nargs=4, default=None, metavar=("SRR", "SRT", "STR", "STT"),
-                     help="the filter's motion model, GMapping's four deviations (default: the simulator's, "
-                          "0.05 0.03 0.02 0.1; the radish-noisy logs: 0.03 0.02 0.01 0.05)")
+    rep.add_argument("--preset", default=None,
+                     help="RBPF settings for a known kind of log (radish-noisy: the classic CARMEN logs with "
+                          "shared/datasets' odometry noise); default: the simulator's")
     rep.add_argument("--insertion-range", type=float, default=None,
                      help="echoes beyond this only free cells up to it (default: the sensor's range)")
     rep.add_argument("--matching-range", type=float, default=None,

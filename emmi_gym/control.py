@@ -32,6 +32,11 @@ class WaypointFollower:
         """The waypoints not reached yet."""
         return self.waypoints[self.index:]
 
+    def remaining_length(self, pose) -> float:
+        """Length (m) of the rest of the path from ``pose``: to the next waypoint, then along the others."""
+        points = np.array([tuple(pose[:2])] + self.remaining)
+        return float(np.hypot(*np.diff(points, axis=0).T).sum())
+
     def command(self, pose) -> tuple[float, float]:
         x, y, theta = pose
         while not self.done:

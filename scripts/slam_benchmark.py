@@ -1,7 +1,7 @@
 """The RBPF on real laser logs: the radish-noisy set (Intel, ACES, CSAIL, Freiburg 079 x 3 odometry seeds).
 
     python scripts/slam_benchmark.py [--data ../shared/datasets/radish-noisy] [--logs intel aces]
-        [--seeds 0 1 2] [--particles 15] [--resolution 0.05] [--max-range 30] [--motion-noise 0.03 0.02 0.01 0.05]
+        [--seeds 0 1 2] [--particles 15] [--resolution 0.05] [--max-range 30] [--preset radish-noisy]
         [--slam '{"insertion_range": 8}'] [--out slam_benchmark] [--jobs 1]
 
 Every keyframe is an update (linear_update = angular_update = 0, as GMapping's
@@ -29,12 +29,7 @@ from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam.replay import replay, write_map_png, write_tum
 
 LOGS = ("intel", "aces", "csail", "freiburg-079")
-#: The filter's motion model (srr, srt, str, stt) for these logs' odometry: their noise (alphas
-#: 0.0004, 0.0001, 0.0004, 0.0001, a heading drift of 0.002 rad/m and a 1% scale error, see the
-#: first line of each log) is smaller than the simulator's, for which RBPFConfig's default is
-#: set. With the default, ACES ends 1.5-2.4 m off; GMapping's own defaults (0.1, 0.2, 0.1, 0.2)
-#: lose it (14-21 m).
-RADISH_MOTION_NOISE = (0.03, 0.02, 0.01, 0.05)
+
 
 
 def run_one(path: Path, config: RBPFConfig, max_range: float, out: Path) -> dict:
@@ -64,15 +59,14 @@ def main() -> None:
     parser.add_argument("--resolution", type=float, default=0.05)
     parser.add_argument("--max-range", type=float, default=30.0,
                         help="readings at or beyond it are no echo (the logs mark them 81.83 m or 50 m)")
-    parser.add_argument("--motion-noise", type=float, nargs=4, default=RADISH_MOTION_NOISE,
-                        metavar=("SRR", "SRT", "STR", "STT"), help="the filter's motion model")
+    parser.add_argument("--preset", default="radish-noisy", help="RBPFConfig preset ('none': the defaults)")
     parser.add_argument("--slam", default="{}", help="further RBPFConfig fields as JSON")
     parser.add_argument("--out", default="slam_benchmark")
     parser.add_argument("--jobs", type=int, default=1)
     args = parser.parse_args()
-    config = RBPFConfig(**{"particles": args.particles, "resolution": args.resolution, "linear_update": 0.0,
-                           "angular_update": 0.0, "motion_noise": tuple(args.motion_noise),
-                           **json.loads(args.slam)})  # every keyframe an update
+    options = {"particles": args.particles, "resolution": args.resolution, "linear_update": 0.0,
+               "angular_update": 0.0, **json.loads(args.slam)}  # every keyframe an update
+    config = RBPFConfig(**options) if args.preset == "none" else RBPFConfig.preset(args.preset, **options)
     data, out = Path(args.data), Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     corrected = data.parent / "carmen"
@@ -85,7 +79,7 @@ def main() -> None:
         results = list(pool.map(run_one, paths, [config] * len(paths), [args.max_range] * len(paths),
                                 [out] * len(paths)))
     print(f"{args.particles} particles, {args.resolution} m cells, every keyframe an update, max range "
-          f"{args.max_range} m, motion noise {tuple(args.motion_noise)}, overrides {args.slam}")
+          f"{args.max_range} m, preset {args.preset}, overrides {args.slam}")
     print("| log | updates | dead reckoning ATE (m) | RBPF ATE (m) | median ms/update | max ms | "
           "of which metrics (median) | resamplings | longest resampling (ms) |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")

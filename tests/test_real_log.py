@@ -11,14 +11,12 @@ from emmi_gym.slam.replay import replay
 
 LOG = Path(__file__).parent / "data" / "intel-first-loop.log.gz"
 BACK_AT_START = 98  # keyframe at which the corrected path first returns to the start
-#: The motion model for these logs' odometry (as scripts/slam_benchmark.py's RADISH_MOTION_NOISE).
-MOTION_NOISE = (0.03, 0.02, 0.01, 0.05)
 
 
 @pytest.fixture(scope="module")
 def intel_loop():
-    return replay(read_log(LOG), RBPFConfig(particles=15, resolution=0.05, motion_noise=MOTION_NOISE),
-                  max_range=30.0, every_scan=True)
+    return replay(read_log(LOG), RBPFConfig.preset("radish-noisy", particles=15, resolution=0.05), max_range=30.0,
+                  every_scan=True)
 
 
 def test_the_first_intel_loop_closes(intel_loop):

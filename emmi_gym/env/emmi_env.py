@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import fields
 
 import gymnasium as gym
@@ -39,6 +41,11 @@ STAY_STEPS = 150
 #: macro-action replans (with the scan's obstacles), and after which it counts as blocked.
 REPLAN_STALLED_STEPS = 5
 BLOCKED_STEPS = 15
+#: Steps (30 s) in which the path left to a target must shrink by PROGRESS_M, else the target
+#: counts as blocked: replanning round a passage that the scan shows shut only when near can
+#: swing between two routes for ever (move_base's oscillation timeout).
+NO_PROGRESS_STEPS = 300
+PROGRESS_M = 0.5
 #: Scan echoes closer than this (m) are obstacles for replanning, with this occupancy probability.
 SCAN_LAYER_RANGE = 3.0
 SCAN_LAYER_P = 0.9
@@ -200,12 +207,14 @@ class EmmiEnv(gym.Env):
         expected map and replanned if a wall now lies on it (as move_base replans); every
         command passes the safety layer on the live scan first. Returns "stayed" if not a
         single step was taken, "blocked" if for ``BLOCKED_STEPS`` steps it drove into a wall
-        or the safety layer would not let it drive on, or the target became unreachable,
+        or the safety layer would not let it drive on, the target became unreachable, or the
+        path left to it did not shrink by ``PROGRESS_M`` in ``NO_PROGRESS_STEPS`` steps,
         else "moved".
         """
         follower = self._follower(self._costs.path_to(target.x, target.y))
         planned_at = self.slam.step
-        colliding = taken = 0
+        colliding = taken = since_progress = 0
+        shortest = math.inf
         for _ in range(self.config.macro_timeout):
             pose = self.slam.pose_estimate(self.sim.odometry_pose)
             if self.slam.step != planned_at or colliding == REPLAN_STALLED_STEPS:
@@ -213,6 +222,12 @@ class EmmiEnv(gym.Env):
                 follower = self._replanned(follower, pose, target)
                 if follower is None:
                     return "blocked"
+            left = follower.remaining_length(pose)
+            if left < shortest - PROGRESS_M:
+                shortest, since_progress = left, 0
+            elif since_progress >= NO_PROGRESS_STEPS:
+                return "blocked"
+            since_progress += 1
             v, omega = follower.command(pose)
             if follower.done or self.sim_steps >= self.config.max_sim_steps:
                 break

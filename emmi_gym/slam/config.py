@@ -111,5 +111,25 @@ class RBPFConfig:
         return max(1, int(round(self.coarse_resolution / self.resolution)))
 
     @classmethod
+    def preset(cls, name: str, **overrides) -> "RBPFConfig":
+        """A configuration from :data:`PRESETS` (GMapping ships such files per sensor), with ``overrides``."""
+        if name not in PRESETS:
+            raise ValueError(f"unknown RBPF preset {name!r}; the presets are {sorted(PRESETS)}")
+        return cls(**{**PRESETS[name], **overrides})
+
+    @classmethod
     def option_names(cls) -> list[str]:
         return [f.name for f in fields(cls)]
+
+
+#: Named settings for other robots than the simulator's (the defaults). ``radish-noisy``: the
+#: classic CARMEN logs (SICK LMS, 180 degrees, keyframes) with the odometry noise of
+#: ``shared/datasets/radish-noisy`` (alphas 0.0004, 0.0001, 0.0004, 0.0001, a heading drift of
+#: 0.002 rad/m, a 1% scale error), smaller than the simulator's, so a tighter motion model (with
+#: the defaults ACES ends 1.5-2.4 m off, with GMapping's own 0.1, 0.2, 0.1, 0.2 it is lost);
+#: 90 climbing beams (a 180-degree scan pins the heading less than a 360-degree one); and
+#: tempering 0.003, which keeps Intel's first loop free of resampling until it closes.
+#: Measured with scripts/slam_benchmark.py, see docs/slam.md.
+PRESETS = {
+    "radish-noisy": dict(motion_noise=(0.03, 0.02, 0.01, 0.05), match_climb_beams=90, likelihood_exponent=0.003),
+}
