@@ -118,8 +118,13 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     counts = np.array([np.bincount(c.ravel().astype(np.int64) + 128, minlength=256) for c in codes])
     block = 4
     coarse = np.array([occupied_per_block(c, block) for c in codes])
-    serial = K.insert_scans(got, hits, counts, coarse, block, poses, *rays, 17, -8, 100, 0.0, 0.0, RES, stamp, 0)
+    touched = np.empty(h * w, dtype=np.int32)
+    serial, n_touched = K.insert_scans(got, hits, counts, coarse, block, poses, *rays, 17, -8, 100, 0.0, 0.0, RES,
+                                       stamp, 0, touched)
     assert serial == 2 * m
+    changed = np.flatnonzero(np.any(got != codes, axis=0))
+    assert len(set(touched[:n_touched])) == n_touched  # each cell once
+    assert set(changed) <= set(touched[:n_touched])
     np.testing.assert_array_equal(got, expected)
     np.testing.assert_array_equal(counts, [np.bincount(c.ravel() + 128, minlength=256) for c in expected])
     np.testing.assert_array_equal(coarse, [occupied_per_block(c, block) for c in expected])
@@ -146,9 +151,10 @@ def test_hit_means_follow_the_end_points():
         a = math.atan2(ey - 0.05, ex - 0.05)
         counts = np.zeros((1, 256), dtype=np.int64)
         counts[0, 128] = 100
-        serial = K.insert_scans(codes, hits, counts, np.zeros((1, 10, 10), dtype=np.int32), 1,
-                                np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]), np.array([K.RAY_HIT]), 17,
-                                -8, 100, 0.0, 0.0, RES, stamp, serial)
+        serial, _ = K.insert_scans(codes, hits, counts, np.zeros((1, 10, 10), dtype=np.int32), 1,
+                                   np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
+                                   np.array([K.RAY_HIT]), 17, -8, 100, 0.0, 0.0, RES, stamp, serial,
+                                   np.empty(100, dtype=np.int32))
     stored = hits[0, 5, 5]
     assert stored[2] == 3
     offset_from_centre = np.mean(ends, axis=0) / RES - 5.5  # in cells, from the centre of cell (5, 5)
