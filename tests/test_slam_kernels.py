@@ -161,11 +161,13 @@ def test_hit_means_follow_the_end_points():
     np.testing.assert_allclose(stored[:2] / 254, offset_from_centre, atol=1 / 254 + 1e-9)
 
 
-def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, radius, sigma):
-    """Brute force: every cell within the window; d^2 capped at (radius / RES)^2."""
+def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, radius, sigma, null_distance=0.2):
+    """Brute force: every cell within the window; a beam with nothing within ``radius`` costs as if
+    it were ``null_distance`` off."""
     h, w = grid.shape
     window = math.ceil(radius / RES)
     cap2 = (radius / RES) ** 2
+    null2 = (max(null_distance, radius) / RES) ** 2
     scale = RES * RES / (2 * sigma * sigma)
     total, matched = 0.0, 0
     for r, a in zip(ranges, angles):
@@ -175,7 +177,7 @@ def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, radius, sigm
         hx, hy = (x + r * c) / RES, (y + r * s) / RES
         bx, by = round(-math.sqrt(2) * c), round(-math.sqrt(2) * s)
         hcx, hcy = math.floor(hx), math.floor(hy)
-        best = cap2
+        best = math.inf
         if window + 1 <= hcx < w - window - 1 and window + 1 <= hcy < h - window - 1:
             for row in range(hcy - window, hcy + window + 1):
                 for col in range(hcx - window, hcx + window + 1):
@@ -184,7 +186,7 @@ def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, radius, sigm
                         my = row + 0.5 + hits[row, col, 1] / 254
                         best = min(best, (mx - hx) ** 2 + (my - hy) ** 2)
         matched += best < cap2
-        total -= best * scale
+        total -= (best if best < cap2 else null2) * scale
     return total, matched
 
 
@@ -213,7 +215,7 @@ def test_scan_loglik_matches_twin(seed, radius):
     offsets = np.empty((30, 4))
     n = MT.beam_offsets(theta, ranges, angles, 3.0, RES, offsets)
     s = settings(radius)
-    got = MT.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, s.window, s.cap2, s.scale)
+    got = MT.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, s)
     want = twin_loglik(grid, hits, x, y, theta, ranges, angles, 3.0, radius, 0.075)
     assert got[1] == want[1]
     assert got[0] == pytest.approx(want[0], rel=1e-9, abs=1e-9)

@@ -38,7 +38,8 @@ from ._kernels import OFFSET_SCALE
 MatchSettings = namedtuple("MatchSettings", [
     "origin_x", "origin_y", "resolution",
     "window",            # cells searched around an end point (ceil(radius / resolution))
-    "cap2",              # (radius / resolution)^2: a beam's squared distance is capped here
+    "cap2",              # (radius / resolution)^2: beams farther than this from a surface are unmatched
+    "null2",             # (null distance / resolution)^2: what an unmatched beam scores
     "scale",             # resolution^2 / (2 sigma^2): log-likelihood per squared cell
     "linear_step", "angular_step", "refinements", "max_iterations",
     "block",             # cells per coarse block side
@@ -53,6 +54,7 @@ def match_settings(config, origin_x: float, origin_y: float, resolution: float, 
     radius_cells = config.match_radius / resolution
     return MatchSettings(
         float(origin_x), float(origin_y), float(resolution), int(math.ceil(radius_cells)), radius_cells ** 2,
+        (max(config.likelihood_null_distance, config.match_radius) / resolution) ** 2,
         resolution * resolution / (2.0 * config.likelihood_sigma ** 2),
         config.match_linear_step, config.match_angular_step, config.match_refinements,
         config.match_max_iterations, int(block), block * resolution, config.coarse_angular_step,
@@ -122,28 +124,32 @@ def nearest_surface_d2(grid, hits, hx, hy, back_x, back_y, window):
 
 
 @nb.njit(cache=True)
-def scan_loglik(grid, hits, gx, gy, offsets, n_beams, window, cap2, scale):
+def scan_loglik(grid, hits, gx, gy, offsets, n_beams, s):
     """Log-likelihood of a scan on one grid, the laser at grid position (gx, gy).
 
-    Each hit beam scores ``-min(d^2, cap2) * scale``, d the distance in cells from its end
-    point to the nearest surface point (:func:`nearest_surface_d2`); a beam ending within
-    ``window + 1`` cells of the grid's edge scores the floor ``-cap2 * scale``.
-    Returns (log-likelihood, beams with d^2 < cap2).
+    Each hit beam whose end point has a surface point within ``match_radius``
+    (:func:`nearest_surface_d2`, d in cells) scores ``-d^2 * scale``; any other beam, or
+    one ending within ``window + 1`` cells of the grid's edge, scores ``-null2 * scale``,
+    as if it were ``likelihood_null_distance`` off (GMapping's nullLikelihood: a fixed cost
+    for a beam that finds nothing, whatever the cell size). Returns (log-likelihood,
+    matched beams).
     """
     h, w = grid.shape
     total = 0.0
     matched = 0
-    reach = window + 1
+    reach = s.window + 1
     for b in range(n_beams):
         hx = gx + offsets[b, 0]
         hy = gy + offsets[b, 1]
         hcx, hcy = int(math.floor(hx)), int(math.floor(hy))
-        d2 = cap2
+        d2 = np.inf
         if reach <= hcx < w - reach and reach <= hcy < h - reach:
-            d2 = min(cap2, nearest_surface_d2(grid, hits, hx, hy, int(offsets[b, 2]), int(offsets[b, 3]), window))
-        if d2 < cap2:
+            d2 = nearest_surface_d2(grid, hits, hx, hy, int(offsets[b, 2]), int(offsets[b, 3]), s.window)
+        if d2 < s.cap2:
             matched += 1
-        total -= d2 * scale
+            total -= d2 * s.scale
+        else:
+            total -= s.null2 * s.scale
     return total, matched
 
 
@@ -192,7 +198,7 @@ def log_target(grid, hits, pose, offsets, n_beams, s, mean, precision):
     """
     gx = (pose[0] - s.origin_x) / s.resolution
     gy = (pose[1] - s.origin_y) / s.resolution
-    ll, matched = scan_loglik(grid, hits, gx, gy, offsets, n_beams, s.window, s.cap2, s.scale)
+    ll, matched = scan_loglik(grid, hits, gx, gy, offsets, n_beams, s)
     return ll - 0.5 * _prior_quadratic(pose[0], pose[1], pose[2], mean, precision), matched
 
 
@@ -331,7 +337,7 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
             n = beam_offsets(motion_samples[i, 2], ranges, angles, max_range, s.resolution, offsets[0])
             gx = (motion_samples[i, 0] - s.origin_x) / s.resolution
             gy = (motion_samples[i, 1] - s.origin_y) / s.resolution
-            ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s.window, s.cap2, s.scale)
+            ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s)
             new_poses[i] = motion_samples[i]
             log_increments[i] = s.exponent * ll
             continue

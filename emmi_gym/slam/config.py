@@ -55,6 +55,9 @@ class RBPFConfig:
     coarse_trigger: float = 0.6           # run the coarse stage below this fraction of matched beams
     # likelihood and weights
     likelihood_sigma: float = 0.075
+    # an end point with no surface within match_radius scores as if it were this far off
+    # (GMapping's nullLikelihood): the cost of a beam that sees a wall where the map has none
+    likelihood_null_distance: float = 0.2
     # radians between the beams of the likelihood: neighbouring beams see the same surface
     # and their errors are not independent (Thrun et al. 2005, sec. 6.4, subsample the beams)
     likelihood_beam_spacing: float = 0.035
@@ -71,7 +74,8 @@ class RBPFConfig:
     def __post_init__(self):
         positive = ("resolution", "logodds_occupied", "logodds_clamp", "logodds_step", "match_linear_step",
                     "match_angular_step", "match_radius", "coarse_resolution",
-                    "coarse_angular_step", "likelihood_sigma", "likelihood_beam_spacing", "likelihood_exponent")
+                    "coarse_angular_step", "likelihood_sigma", "likelihood_null_distance", "likelihood_beam_spacing",
+                    "likelihood_exponent")
         for name in positive:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
