@@ -16,7 +16,7 @@ import numpy as np
 
 from emmi_gym.carmen import read_log
 from emmi_gym.evaluation import absolute_trajectory_error
-from emmi_gym.slam.replay import true_pose_at
+from emmi_gym.slam.replay import laser_stream, true_pose_at
 
 
 def main() -> None:
@@ -28,10 +28,16 @@ def main() -> None:
     table = np.atleast_2d(np.loadtxt(args.trajectory, comments="#"))
     if table.shape[1] not in (4, 8):
         raise SystemExit(f"{args.trajectory}: expected 4 columns (t x y theta) or 8 (TUM), got {table.shape[1]}")
-    truth_at = true_pose_at(read_log(args.log))
+    log = read_log(args.log)
+    truth_at = true_pose_at(log)
     if truth_at is None:
         raise SystemExit(f"{args.log}: no TRUEPOS lines")
-    pairs = [(row[1:3], truth_at(row[0])) for row in table]
+    # one pose per scan (every keyframe an update): the k-th pose belongs to the k-th scan, whose
+    # odometry settles ties of rounded timestamps; otherwise the first TRUEPOS of that time
+    scans = [(position, pose) for position, pose, _ in laser_stream(log)]
+    in_order = len(scans) == len(table)
+    pairs = [(row[1:3], truth_at(row[0], *(scans[k][::-1] if in_order else ((np.inf, np.inf), 0))))
+             for k, row in enumerate(table)]
     pairs = [(estimate, truth) for estimate, truth in pairs if truth is not None]
     if not pairs:
         raise SystemExit(f"{args.trajectory}: no pose has a TRUEPOS within 0.05 s")

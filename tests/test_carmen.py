@@ -172,6 +172,9 @@ def test_replay_matches_truth_by_time_and_writes_tum(tmp_path):
     result = replay(carmen.parse_lines(lines), RBPFConfig(particles=2), max_range=30.0, every_scan=True)
     assert len(result.rows) == 6 and all(t is not None for t in result.true_poses)
     assert result.ate() is not None and result.dead_reckoning_ate() == pytest.approx(0.0, abs=1e-9)
+    rounded = [" ".join(line.split()[:-3] + ["1134860000.0", "host", "1134860000.0"]) for line in lines]
+    tied = replay(carmen.parse_lines(rounded), RBPFConfig(particles=2), max_range=30.0, every_scan=True)
+    assert tied.dead_reckoning_ate() == pytest.approx(0.0, abs=1e-9)  # rounded timestamps: the truth next to each scan
     table = np.loadtxt(write_tum(result, tmp_path / "best.tum"))
     assert table.shape == (6, 8)
     np.testing.assert_allclose(table[:, 0], np.arange(6.0))

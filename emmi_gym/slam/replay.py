@@ -50,44 +50,52 @@ class ReplayResult:
 
 
 def true_pose_at(log: carmen.CarmenLog, tolerance: float = 0.05):
-    """A function of a timestamp giving the TRUEPOS pose logged nearest to it (before or after the
-    scan, within ``tolerance`` seconds), or None; None for a log without TRUEPOS lines."""
-    truths = log.of_type(carmen.TruePoseRecord)
-    if not truths:
+    """A function of (timestamp, odometry pose, position in ``log.records``) of a scan giving the
+    TRUEPOS pose logged nearest in time (before or after the scan, within ``tolerance`` seconds),
+    or None. Where several share that time (logs whose timestamps were rounded, as CSAIL's to
+    1e4 s), the one whose own odometry pose is nearest the scan's (a TRUEPOS line carries both),
+    then the nearest in the file. None for a log without TRUEPOS lines."""
+    found = [(k, r) for k, r in enumerate(log.records) if isinstance(r, carmen.TruePoseRecord)]
+    if not found:
         return None
-    times = np.array([t.timestamp for t in truths])
-    order = np.argsort(times, kind="stable")
-    times = times[order]
-    poses = np.array([truths[k].true_pose for k in order])
+    positions = np.array([k for k, _ in found])
+    times = np.array([r.timestamp for _, r in found])
+    poses = np.array([r.true_pose for _, r in found])
+    odometry = np.array([r.odometry_pose[:2] for _, r in found])
 
-    def lookup(timestamp: float):
-        k = int(np.searchsorted(times, timestamp))
-        best = min((j for j in (k - 1, k) if 0 <= j < times.size), key=lambda j: abs(times[j] - timestamp))
-        return poses[best] if abs(times[best] - timestamp) <= tolerance else None
+    def lookup(timestamp: float, odometry_pose, position: int):
+        gap = np.abs(times - timestamp)
+        nearest = gap.min()
+        if nearest > tolerance:
+            return None
+        ties = np.flatnonzero(gap == nearest)
+        apart = np.hypot(*(odometry[ties] - np.asarray(odometry_pose)[:2]).T)
+        return poses[ties[np.lexsort((np.abs(positions[ties] - position), apart))[0]]]
 
     return lookup
 
 
 def laser_stream(log: carmen.CarmenLog):
-    """(laser pose by odometry, scan record) for every scan; the pose is None before any odometry.
+    """(position in ``log.records``, laser pose by odometry, scan record) for every scan; the pose is
+    None before any odometry.
 
     ROBOTLASER1 and FLASER lines carry the robot's odometry pose; a RAWLASER1 line takes
     the latest ODOM before it. The laser's mounting offset (ROBOTLASER1) is applied, so
     the filter tracks the laser itself.
     """
     odometry = None
-    for record in log.records:
+    for position, record in enumerate(log.records):
         if isinstance(record, carmen.OdometryRecord):
             odometry = record.pose
         elif isinstance(record, carmen.LaserRecord):
             pose = record.odometry_pose if record.odometry_pose is not None else odometry
             if pose is None:
-                yield None, record
+                yield position, None, record
                 continue
             if record.laser_offset is not None and np.any(record.laser_offset):
                 ox, oy, otheta = record.laser_offset
                 pose = compose_motion(pose, np.arctan2(oy, ox), np.hypot(ox, oy), otheta - np.arctan2(oy, ox))
-            yield pose, record
+            yield position, pose, record
 
 
 def log_extent(poses: np.ndarray, max_range: float, resolution: float, drift_margin: float = 0.2) -> GridGeometry:
@@ -120,7 +128,7 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
         if not ranges_known:
             raise ValueError("FLASER lines do not carry the laser's maximum range: pass max_range (--max-range)")
         max_range = max(ranges_known)
-    odometry = np.array([pose for pose, _ in laser_stream(log) if pose is not None])
+    odometry = np.array([pose for _, pose, _ in laser_stream(log) if pose is not None])
     if odometry.size == 0:
         raise ValueError("no scan in the log has odometry (ODOM before RAWLASER1, or a robot pose in the line)")
     if every_scan:
@@ -135,7 +143,7 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
         from tqdm import tqdm
 
         stream = tqdm(stream, total=len(lasers), unit="scan", desc="replay")
-    for pose, record in stream:
+    for position, pose, record in stream:
         if pose is None:
             missing += 1
             continue
@@ -148,7 +156,7 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
             rows.append(metrics)
             times.append(record.timestamp)
             odometry_at_update.append(pose)
-            truths.append(truth_at(record.timestamp) if truth_at is not None else None)
+            truths.append(truth_at(record.timestamp, pose, position) if truth_at is not None else None)
     return ReplayResult(rows, slam, np.array(times), np.array(odometry_at_update), truths, used, missing, log)
 
 
