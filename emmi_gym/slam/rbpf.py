@@ -112,8 +112,10 @@ class RBPF:
 
     @property
     def best(self) -> int:
-        """The particle with the highest weight accumulated over its whole history (GMapping's choice)."""
-        return int(np.argmax(self.accumulated_log_weights))
+        """The particle of highest weight (the posterior's most likely path); among equal weights, as
+        right after a resampling, the one whose weight accumulated over its whole history is highest
+        (GMapping's choice)."""
+        return int(np.lexsort((-self.accumulated_log_weights, -self.log_weights))[0])
 
     @property
     def geometry(self) -> GridGeometry:
