@@ -1,12 +1,34 @@
-"""Errors about bad input files, shared by the world files and the agent configurations."""
+"""Errors about bad input (files, options), with short excerpts of the values they found."""
 
 from __future__ import annotations
 
+import reprlib
+
+#: The longest excerpt of a bad value an error message holds.
+EXCERPT_CHARS = 80
+
+
+_SHORT = reprlib.Repr()
+_SHORT.maxlevel = 2
+_SHORT.maxtuple = _SHORT.maxlist = _SHORT.maxarray = _SHORT.maxdict = _SHORT.maxset = _SHORT.maxfrozenset = 4
+_SHORT.maxdeque = 4
+_SHORT.maxstring = _SHORT.maxother = 40
+_SHORT.maxlong = 40
+
+
+def excerpt(value) -> str:
+    """A short ``repr`` of ``value`` (reprlib's, which never formats what it leaves out: a value
+    expanded to billions of characters must not reach, nor be formatted for, a message)."""
+    text = _SHORT.repr(value)
+    return text if len(text) <= EXCERPT_CHARS else f"{text[:EXCERPT_CHARS]}..."
+
 
 class FieldError(ValueError):
-    """A file (or dict) is malformed; says which file, which field, what was expected and what it got."""
+    """Input is malformed; says where (a file or ``option``), which field, what was expected and what it got."""
 
-    def __init__(self, source: str, field_path: str, expected: str, got=None):
+    NOTHING = object()  # no value to show (a missing field, an unknown key)
+
+    def __init__(self, source: str, field_path: str, expected: str, got=NOTHING):
         self.source, self.field, self.expected, self.got = source, field_path, expected, got
-        got_text = "" if got is None else f", got {got!r}"
+        got_text = "" if got is FieldError.NOTHING else f", got {excerpt(got)}"
         super().__init__(f"{source}: field '{field_path}': expected {expected}{got_text}")

@@ -174,17 +174,19 @@ def test_async_vector_env_and_sb3_subproc_spawn():
 
 
 @pytest.mark.parametrize("options, message", [
-    (dict(colour="red"), r"unknown option\(s\) \['colour'\]; valid options are \[.*'reward'"),
-    (dict(reward="fun"), r"reward='fun' is not valid; choose one of \['emmi', 'pose_entropy', 'joint_entropy', 'coverage'\]"),
-    (dict(action_mode="teleport"), r"choose one of \['waypoint', 'velocity'\]"),
-    (dict(particles=0), "particles must be an integer >= 1"),
-    (dict(laser={"beams": 10}), r"unknown laser option\(s\) \['beams'\]; valid ones are \['fov', 'n_beams'"),
-    (dict(laser={"n_beams": -1}), "laser n_beams must be a positive integer"),
-    (dict(odometry_noise={"rot_from_rot": -1}), "rot_from_rot must be a finite number >= 0"),
+    (dict(colour="red"), r"gym.make: field 'colour': expected one of the known options \[.*'reward'"),
+    (dict(reward="fun"), r"field 'reward': expected one of \['emmi', 'pose_entropy', 'joint_entropy', 'coverage'\], "
+                         r"got 'fun'"),
+    (dict(action_mode="teleport"), r"expected one of \['waypoint', 'velocity'\]"),
+    (dict(particles=0), r"field 'particles': expected an integer in \[1, 1000\]"),
+    (dict(laser={"beams": 10}), r"field 'laser.beams': expected one of the known options \['fov', 'n_beams'"),
+    (dict(laser={"n_beams": -1}), r"field 'laser.n_beams': expected an integer in \[1, 10000\]"),
+    (dict(odometry_noise={"rot_from_rot": -1}), r"field 'odometry_noise.rot_from_rot': expected a finite number in "
+                                                r"\[0, 1\], got -1"),
     (dict(world="nowhere"), "unknown world 'nowhere'"),
     (dict(world="office"), "start_at='decision' needs a 'to_decision' route"),
-    (dict(coverage_target=1.5), "coverage_target must be in"),
-    (dict(slam={"likelihood_exponent": -1}), "RBPF likelihood_exponent must be a positive number"),
+    (dict(coverage_target=1.5), r"field 'coverage_target': expected a finite number in \(0, 1\]"),
+    (dict(slam={"likelihood_exponent": -1}), r"field 'slam.likelihood_exponent': expected a finite number in \(0, 1\]"),
 ])
 def test_bad_options_raise_a_clear_error(options, message):
     with pytest.raises(ValueError, match=message):

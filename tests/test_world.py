@@ -261,7 +261,7 @@ def test_beams_past_max_range_read_max_range_and_drops():
 
 def test_laser_config_rejects_bad_values():
     for bad in (dict(fov=0), dict(n_beams=0), dict(max_range=-1), dict(range_sigma=-0.1), dict(drop_probability=1)):
-        with pytest.raises(ValueError, match="laser"):
+        with pytest.raises(ValueError, match=f"LaserConfig: field '{next(iter(bad))}'"):
             LaserConfig(**bad)
 
 

@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
+
+from ..slam.config import MAX_PARTICLES, MIN_RESOLUTION, RBPFConfig
+from ..validation import Boolean, Choice, Integer, Mapping, Maybe, Real, Text, build, check_fields, fail, option
+from ..world import GeneratorConfig, LaserConfig, OdometryNoise
 
 REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage")
 ACTION_MODES = ("waypoint", "velocity")
 VELOCITY_ACTIONS = ("continuous", "discrete")
 OBSERVATIONS = ("dict", "image")
 STARTS = ("decision", "start")
+#: Where the options come from, in error messages.
+SOURCE = "gym.make"
 
 #: Reward scales: each turns its measure's typical change over one macro-action into O(0.1-1).
 #: EMMI lies in [0, 1] bits/cell and moves by 0.01-0.1 per macro-action; the pose entropy
@@ -35,60 +40,52 @@ class EnvConfig:
       ``resolution`` are shortcuts into ``slam``.
     """
 
-    world: str | None = "loop_corridor"
-    generator: dict = field(default_factory=dict)
-    start_at: str = "decision"
-    action_mode: str = "waypoint"
-    velocity_actions: str = "continuous"
-    reward: str = "emmi"
-    reward_scale: float | None = None
-    time_cost: float = 0.002
-    collision_cost: float = 0.05
-    coverage_target: float = 0.9
-    particles: int = 15
-    resolution: float = 0.1
-    laser: dict = field(default_factory=dict)
-    odometry_noise: dict = field(default_factory=dict)
-    slam: dict = field(default_factory=dict)
-    observation: str = "dict"
-    obs_size: int = 64
-    egocentric: bool = False
-    egocentric_extent: float = 16.0
-    n_frontiers: int = 6
-    n_revisits: int = 2
-    max_decisions: int = 60
-    max_sim_steps: int = 12000
-    macro_timeout: int = 900
+    world: str | None = option("loop_corridor", Maybe(Text(), "a generated world per reset"))
+    generator: dict = option({}, Mapping())
+    start_at: str = option("decision", Choice(STARTS))
+    action_mode: str = option("waypoint", Choice(ACTION_MODES))
+    velocity_actions: str = option("continuous", Choice(VELOCITY_ACTIONS))
+    reward: str = option("emmi", Choice(REWARDS))
+    reward_scale: float | None = option(None, Maybe(Real(0.0, 1e6, open_lo=True), "the reward's default scale"))
+    time_cost: float = option(0.002, Real(0.0, 1e3))
+    collision_cost: float = option(0.05, Real(0.0, 1e3))
+    coverage_target: float = option(0.9, Real(0.0, 1.0, open_lo=True))
+    particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"))
+    resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"))
+    laser: dict = option({}, Mapping())
+    odometry_noise: dict = option({}, Mapping())
+    slam: dict = option({}, Mapping())
+    observation: str = option("dict", Choice(OBSERVATIONS))
+    obs_size: int = option(64, Integer(16, 1024, "the observation holds obs_size^2 pixels per channel"))
+    egocentric: bool = option(False, Boolean())
+    egocentric_extent: float = option(16.0, Real(0.0, 1000.0, open_lo=True, unit="m"))
+    n_frontiers: int = option(6, Integer(1, 64))
+    n_revisits: int = option(2, Integer(0, 64))
+    max_decisions: int = option(60, Integer(1, 1_000_000))
+    max_sim_steps: int = option(12000, Integer(1, 100_000_000))
+    macro_timeout: int = option(900, Integer(1, 1_000_000))
 
     def __post_init__(self):
-        choices = {"start_at": STARTS, "action_mode": ACTION_MODES, "velocity_actions": VELOCITY_ACTIONS,
-                   "reward": REWARDS, "observation": OBSERVATIONS}
-        for name, valid in choices.items():
-            if getattr(self, name) not in valid:
-                raise ValueError(f"{name}={getattr(self, name)!r} is not valid; choose one of {list(valid)}")
-        for name in ("particles", "obs_size", "n_frontiers", "max_decisions", "max_sim_steps", "macro_timeout"):
-            value = getattr(self, name)
-            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if not (isinstance(self.n_revisits, int) and self.n_revisits >= 0):
-            raise ValueError(f"n_revisits must be an integer >= 0, got {self.n_revisits!r}")
-        if self.obs_size < 16:
-            raise ValueError(f"obs_size must be at least 16 pixels, got {self.obs_size}")
-        for name in ("time_cost", "collision_cost"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
-        for name in ("resolution", "egocentric_extent"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
-        if not 0.0 < self.coverage_target <= 1.0:
-            raise ValueError(f"coverage_target must be in (0, 1], got {self.coverage_target!r}")
-        if self.reward_scale is not None and not (isinstance(self.reward_scale, (int, float)) and self.reward_scale > 0):
-            raise ValueError(f"reward_scale must be a positive number or None, got {self.reward_scale!r}")
-        for name in ("generator", "laser", "odometry_noise", "slam"):
-            if not isinstance(getattr(self, name), dict):
-                raise ValueError(f"{name} must be a dict of options, got {getattr(self, name)!r}")
+        check_fields(self)
+        for name in ("particles", "resolution"):
+            if name in self.slam:
+                fail(self, f"slam.{name}", f"no {name} inside slam: give it as the top-level option {name} "
+                     "(which sets the filter's)", self.slam[name])
+        # the nested options, checked now (gym.make and agent configurations fail before any work starts)
+        self.laser_config(), self.odometry_config(), self.slam_config(), self.generator_config()
+
+    def laser_config(self) -> LaserConfig:
+        return build(LaserConfig, self.laser, "laser", source=SOURCE)
+
+    def odometry_config(self) -> OdometryNoise:
+        return build(OdometryNoise, self.odometry_noise, "odometry_noise", source=SOURCE)
+
+    def slam_config(self) -> RBPFConfig:
+        return build(RBPFConfig, dict(self.slam, particles=self.particles, resolution=self.resolution), "slam",
+                     source=SOURCE)
+
+    def generator_config(self) -> GeneratorConfig:
+        return build(GeneratorConfig, self.generator, "generator", source=SOURCE)
 
     @property
     def scale(self) -> float:
@@ -100,9 +97,5 @@ class EnvConfig:
 
 
 def make_config(**options) -> EnvConfig:
-    """An :class:`EnvConfig` from keyword options; an unknown option raises ValueError listing the valid ones."""
-    valid = [f.name for f in fields(EnvConfig)]
-    unknown = sorted(set(options) - set(valid))
-    if unknown:
-        raise ValueError(f"unknown option(s) {unknown}; valid options are {valid}")
-    return EnvConfig(**options)
+    """An :class:`EnvConfig` from keyword options; any mistake raises an :class:`OptionError` naming the option."""
+    return build(EnvConfig, options, "", source=SOURCE)

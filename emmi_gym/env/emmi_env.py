@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import math
 
-from dataclasses import fields
-
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -14,11 +12,8 @@ from .. import certainty, safety
 from ..control import WaypointFollower
 from ..evaluation import absolute_trajectory_error, map_accuracy
 from ..grid import GridGeometry
-from ..slam import RBPF, RBPFConfig
+from ..slam import RBPF
 from ..world import (
-    GeneratorConfig,
-    LaserConfig,
-    OdometryNoise,
     RobotConfig,
     Simulator,
     generate_world,
@@ -51,14 +46,6 @@ SCAN_LAYER_RANGE = 3.0
 SCAN_LAYER_P = 0.9
 
 
-def _dataclass_from(cls, options: dict, name: str):
-    valid = [f.name for f in fields(cls)]
-    unknown = sorted(set(options) - set(valid))
-    if unknown:
-        raise ValueError(f"unknown {name} option(s) {unknown}; valid ones are {valid}")
-    return cls(**options)
-
-
 class EmmiEnv(gym.Env):
     """Active SLAM: a robot in a pymunk world maps it with an RBPF; observation = the expected map.
 
@@ -85,11 +72,10 @@ class EmmiEnv(gym.Env):
         self.render_mode = render_mode
         self.robot_config = RobotConfig()
         self.metadata = dict(self.metadata, render_fps=int(round(1.0 / self.robot_config.control_period)))
-        self.laser_config = _dataclass_from(LaserConfig, cfg.laser, "laser")
-        self.odometry_config = _dataclass_from(OdometryNoise, cfg.odometry_noise, "odometry_noise")
-        self.slam_config = _dataclass_from(RBPFConfig, dict(cfg.slam, particles=cfg.particles,
-                                                            resolution=cfg.resolution), "slam")
-        self.generator_config = _dataclass_from(GeneratorConfig, cfg.generator, "generator")
+        self.laser_config = cfg.laser_config()
+        self.odometry_config = cfg.odometry_config()
+        self.slam_config = cfg.slam_config()
+        self.generator_config = cfg.generator_config()
         self._fixed_world = load_world(cfg.world) if cfg.world is not None else None
         if self._fixed_world is not None and cfg.start_at == "decision" and "to_decision" not in self._fixed_world.routes:
             raise ValueError(f"start_at='decision' needs a 'to_decision' route; world '{self._fixed_world.name}' "

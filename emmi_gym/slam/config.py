@@ -5,6 +5,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from ..validation import Integer, Maybe, Real, Tuple, check_fields, fail, option
+
+#: Upper bounds: particles (each holds a whole map: 1000 of a 100 x 100 m world at 0.1 m take 1 GB)
+#: and the finest cell side.
+MAX_PARTICLES = 1000
+MIN_RESOLUTION = 0.01
+
 
 @dataclass(frozen=True)
 class RBPFConfig:
@@ -16,99 +23,73 @@ class RBPFConfig:
     Log-odds are stored as int8 codes of ``logodds_step`` (MRPT's layout).
     """
 
-    particles: int = 15
-    resolution: float = 0.1
+    particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"))
+    resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"))
     # inverse sensor model
     # peaked, as the paper's Fig. 2 ("due to the sensor high accuracy"): one scan nearly
     # settles a cell, so a map's information reflects agreement more than repetition
-    logodds_occupied: float = 2.0         # p = 0.88 for a hit
-    logodds_free: float = -1.2            # p = 0.23 for a pass
-    logodds_clamp: float = 6.0            # p in [0.0025, 0.9975]
-    logodds_step: float = 0.05            # one int8 code
+    logodds_occupied: float = option(2.0, Real(0.0, 20.0, open_lo=True))  # p = 0.88 for a hit
+    logodds_free: float = option(-1.2, Real(-20.0, 0.0, open_hi=True))  # p = 0.23 for a pass
+    logodds_clamp: float = option(6.0, Real(0.0, 20.0, open_lo=True))  # p in [0.0025, 0.9975]
+    logodds_step: float = option(0.05, Real(0.001, 1.0))  # one int8 code
     # A max-range reading frees this far (0: ignore such beams). Off by default: a
     # dropped echo also reads max range, and freeing along it would erase walls.
-    max_range_free: float = 0.0
+    max_range_free: float = option(0.0, Real(0.0, 100.0, unit="m"))
     # Echoes beyond insertion_range only free the cells up to it (GMapping's maxUrange), and
     # beams beyond matching_range are left out of the matching and the weights; None: the
     # sensor's range. Long beams fix the heading: limit the insertion, not the matching.
-    insertion_range: float | None = None
-    matching_range: float | None = None
+    insertion_range: float | None = option(None, Maybe(Real(0.0, 100.0, open_lo=True, unit="m"), "the sensor's range"))
+    matching_range: float | None = option(None, Maybe(Real(0.0, 100.0, open_lo=True, unit="m"), "the sensor's range"))
     # motion model of the filter, GMapping's (srr, srt, str, stt): translation from translation
     # (m/m), rotation from translation (rad/m), translation from rotation (m/rad), rotation
     # from rotation (rad/rad), deviations in the robot's frame (see motion.local_motion_std)
-    motion_noise: tuple[float, float, float, float] = (0.05, 0.03, 0.02, 0.1)
+    motion_noise: tuple[float, float, float, float] = option((0.05, 0.03, 0.02, 0.1), Tuple(Real(0.0, 10.0), 4))
     # update policy (GMapping's linearUpdate / angularUpdate); 0 and 0: every scan an update
-    linear_update: float = 0.5
-    angular_update: float = 0.3
+    linear_update: float = option(0.5, Real(0.0, 100.0, unit="m"))
+    angular_update: float = option(0.3, Real(0.0, 2 * math.pi, unit="rad"))
     # scan matching (see _matching): GMapping's lstep / astep / iterations, a search radius in
     # metres around each end point, and a coarse stage on blocks of about coarse_resolution
-    match_linear_step: float = 0.05
-    match_angular_step: float = 0.05
-    match_refinements: int = 3
-    match_max_iterations: int = 60
-    match_radius: float = 0.15            # beyond this an end point counts as unmatched
+    match_linear_step: float = option(0.05, Real(0.0, 1.0, open_lo=True, unit="m"))
+    match_angular_step: float = option(0.05, Real(0.0, math.pi, open_lo=True, unit="rad"))
+    match_refinements: int = option(3, Integer(1, 20))
+    match_max_iterations: int = option(60, Integer(1, 10_000))
+    # beyond this an end point counts as unmatched
+    match_radius: float = option(0.15, Real(0.0, 5.0, open_lo=True, unit="m"))
     # beams used while hill-climbing, evenly spread over the scan (GMapping climbs on all of
     # them; with 30 of a 180-degree scan the heading wanders and ACES is lost)
-    match_climb_beams: int = 60
-    coarse_resolution: float = 0.2        # block side of the coarse stage (a whole number of cells)
-    coarse_angular_step: float = 0.05     # first heading step of the coarse climb
-    coarse_trigger: float = 0.6           # run the coarse stage below this fraction of matched beams
+    match_climb_beams: int = option(60, Integer(1, 10_000))
+    # block side of the coarse stage (a whole number of cells)
+    coarse_resolution: float = option(0.2, Real(0.0, 5.0, open_lo=True, unit="m"))
+    # first heading step of the coarse climb
+    coarse_angular_step: float = option(0.05, Real(0.0, math.pi, open_lo=True, unit="rad"))
+    coarse_trigger: float = option(0.6, Real(0.0, 1.0))  # run the coarse stage below this fraction of matched beams
     # likelihood and weights
-    likelihood_sigma: float = 0.075
+    likelihood_sigma: float = option(0.075, Real(0.001, 10.0, unit="m"))
     # an end point with no surface within match_radius scores as if it were this far off
     # (GMapping's nullLikelihood): the cost of a beam that sees a wall where the map has none
-    likelihood_null_distance: float = 0.2
+    likelihood_null_distance: float = option(0.2, Real(0.0, 10.0, open_lo=True, unit="m"))
     # radians between the beams of the likelihood: neighbouring beams see the same surface
     # and their errors are not independent (Thrun et al. 2005, sec. 6.4, subsample the beams)
-    likelihood_beam_spacing: float = 0.035
-    min_match_fraction: float = 0.3       # fall back to odometry below this fraction of matched beams
+    likelihood_beam_spacing: float = option(0.035, Real(0.0, 2 * math.pi, open_lo=True, unit="rad"))
+    # fall back to odometry below this fraction of matched beams
+    min_match_fraction: float = option(0.3, Real(0.0, 1.0))
     # weights: an exponent on the likelihood (MRPT's powFactor; GMapping's 1 / (ogain * M)),
     # chosen by measurement (docs/slam.md): at 0.003 the loop_corridor loop closes without a
     # resampling before it on 19 of 20 seeds, but the closure then resolves too little of
     # the particles' disagreement for the A/B experiment to see it in EMMI; at 0.0075 it
     # does (and ACES and Intel end 0.05-0.26 m off), at the price of about one resampling
     # before the closure.
-    likelihood_exponent: float = 0.0075
-    resample_threshold: float = 0.5       # resample when Neff / M < this
+    likelihood_exponent: float = option(0.0075, Real(0.0, 1.0, open_lo=True))
+    resample_threshold: float = option(0.5, Real(0.0, 1.0))  # resample when Neff / M < this
 
     def __post_init__(self):
-        positive = ("resolution", "logodds_occupied", "logodds_clamp", "logodds_step", "match_linear_step",
-                    "match_angular_step", "match_radius", "coarse_resolution",
-                    "coarse_angular_step", "likelihood_sigma", "likelihood_null_distance", "likelihood_beam_spacing",
-                    "likelihood_exponent")
-        for name in positive:
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"RBPF {name} must be a positive number, got {value!r}")
-        for name in ("insertion_range", "matching_range"):
-            value = getattr(self, name)
-            if value is not None and not (isinstance(value, (int, float)) and value > 0):
-                raise ValueError(f"RBPF {name} must be a positive number or None (the sensor's range), "
-                                 f"got {value!r}")
-        if not self.logodds_free < 0:
-            raise ValueError(f"RBPF logodds_free must be negative, got {self.logodds_free!r}")
+        check_fields(self)
+        if not self.logodds_step <= min(self.logodds_occupied, -self.logodds_free, self.logodds_clamp):
+            fail(self, "logodds_step", "at most logodds_occupied, -logodds_free and logodds_clamp (one int8 code "
+                 "smaller than one update)", self.logodds_step)
         if self.logodds_clamp / self.logodds_step > 127:
-            raise ValueError(f"logodds_clamp / logodds_step must fit int8 codes (<= 127), got "
-                             f"{self.logodds_clamp / self.logodds_step:.0f}")
-        for name in ("linear_update", "angular_update"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"RBPF {name} must be a number >= 0, got {value!r}")
-        for name in ("particles", "match_refinements", "match_max_iterations", "match_climb_beams"):
-            value = getattr(self, name)
-            if not (isinstance(value, int) and value >= 1):
-                raise ValueError(f"RBPF {name} must be an integer >= 1, got {value!r}")
-        if len(self.motion_noise) != 4 or any(not (isinstance(a, (int, float)) and 0 <= a < math.inf)
-                                              for a in self.motion_noise):
-            raise ValueError(f"RBPF motion_noise must be four finite numbers >= 0, got {self.motion_noise!r}")
-        if not 0.0 <= self.max_range_free:
-            raise ValueError(f"RBPF max_range_free must be >= 0, got {self.max_range_free!r}")
-        if not 0.0 <= self.coarse_trigger <= 1.0:
-            raise ValueError(f"RBPF coarse_trigger must be in [0, 1], got {self.coarse_trigger!r}")
-        if not 0.0 <= self.min_match_fraction <= 1.0:
-            raise ValueError(f"RBPF min_match_fraction must be in [0, 1], got {self.min_match_fraction!r}")
-        if not 0.0 <= self.resample_threshold <= 1.0:
-            raise ValueError(f"RBPF resample_threshold must be in [0, 1], got {self.resample_threshold!r}")
+            fail(self, "logodds_clamp", f"at most 127 * logodds_step = {127 * self.logodds_step:g} (int8 codes)",
+                 self.logodds_clamp)
 
     def coarse_block(self) -> int:
         """Cells per side of a coarse block: ``coarse_resolution`` in whole cells (at least 1)."""

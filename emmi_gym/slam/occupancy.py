@@ -28,6 +28,15 @@ def beam_gaps(angles: np.ndarray) -> np.ndarray:
     return gaps
 
 
+#: The most memory the particles' maps may take (a pose far off in a log, or a huge world, would
+#: otherwise ask for terabytes).
+MAX_MAP_BYTES = 4 * 2**30
+
+
+class MapTooLarge(ValueError):
+    """The maps asked for would exceed :data:`MAX_MAP_BYTES`."""
+
+
 class ParticleMaps:
     """M occupancy grids on one :class:`GridGeometry`, updated by scans and copied by index.
 
@@ -50,7 +59,23 @@ class ParticleMaps:
     cells aligned.
     """
 
+    #: Bytes a cell takes: per particle its code, mean hit and share of a coarse count; shared, its
+    #: agreement status, list positions and stamp.
+    BYTES_PER_CELL_PARTICLE = 5
+    BYTES_PER_CELL = 22
+
+    @classmethod
+    def check_memory(cls, rows: int, cols: int, n_particles: int, resolution: float) -> None:
+        """Raise :class:`MapTooLarge` if maps of this shape would take more than :data:`MAX_MAP_BYTES`."""
+        needed = rows * cols * (cls.BYTES_PER_CELL_PARTICLE * n_particles + cls.BYTES_PER_CELL)
+        if needed > MAX_MAP_BYTES:
+            raise MapTooLarge(f"maps of {rows} x {cols} cells of {resolution:g} m ({cols * resolution:.0f} x "
+                              f"{rows * resolution:.0f} m) for {n_particles} particles would take {needed / 2**30:.1f} "
+                              f"GiB, above the bound of {MAX_MAP_BYTES / 2**30:.0f} GiB: use coarser cells, fewer "
+                              "particles or a smaller area")
+
     def __init__(self, geometry: GridGeometry, n_particles: int, codes: CellCodes, block: int = 1):
+        self.check_memory(geometry.rows, geometry.cols, n_particles, geometry.resolution)
         self.geometry = geometry
         self.cell_codes = codes
         self.block = int(block)
@@ -146,6 +171,8 @@ class ParticleMaps:
         down, up = chunks_needed(gy0 - ymin), chunks_needed(ymax - gy1)
         if not (left or right or down or up):
             return False
+        self.check_memory(g.rows + (down + up) * cells, g.cols + (left + right) * cells, self.n_particles,
+                          g.resolution)
         pad = ((0, 0), (down * cells, up * cells), (left * cells, right * cells))
         self.codes = np.pad(self.codes, pad)
         self.hits = np.pad(self.hits, pad + ((0, 0),))

@@ -14,38 +14,45 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..validation import Integer, Real, check_fields, fail, option
 from .spec import Place, WorldSpec
 
 _LAYOUT = 0.1  # metres per layout cell; sizes are rounded to it
+#: Upper bounds of the lattice: junctions per side, their spacing, and the world's width (whose
+#: layout raster, one byte per 0.1 m cell, is then at most 16 MB).
+MAX_JUNCTIONS = 20
+MAX_SPACING = 50.0
+MAX_EXTENT = 400.0
 
 
 @dataclass(frozen=True)
 class GeneratorConfig:
     """Parameters of :func:`generate_world`."""
 
-    nx: int = 4
-    ny: int = 3
-    spacing: float = 6.0
-    corridor_width: float = 2.0
-    n_loops: int = 2
-    room_probability: float = 0.6
-    room_size: float = 4.0
-    wall_thickness: float = 0.25
+    nx: int = option(4, Integer(2, MAX_JUNCTIONS))
+    ny: int = option(3, Integer(2, MAX_JUNCTIONS))
+    spacing: float = option(6.0, Real(1.6, MAX_SPACING, unit="m"))
+    corridor_width: float = option(2.0, Real(0.8, MAX_SPACING / 2, unit="m"))
+    n_loops: int = option(2, Integer(0, 2 * MAX_JUNCTIONS**2))
+    room_probability: float = option(0.6, Real(0.0, 1.0))
+    room_size: float = option(4.0, Real(0.0, 2 * MAX_SPACING, open_lo=True, unit="m"))
+    wall_thickness: float = option(0.25, Real(0.05, 2.0, unit="m"))
 
     def __post_init__(self):
-        if self.nx < 2 or self.ny < 2:
-            raise ValueError(f"the junction lattice must be at least 2 x 2, got {self.nx} x {self.ny}")
-        if not 0.8 <= self.corridor_width <= self.spacing / 2:
-            raise ValueError(f"corridor_width must be in [0.8, spacing / 2 = {self.spacing / 2}] m, "
-                             f"got {self.corridor_width}")
+        check_fields(self)
+        if not self.corridor_width <= self.spacing / 2:
+            fail(self, "corridor_width", f"at most spacing / 2 = {self.spacing / 2:g} m", self.corridor_width)
         max_loops = (self.nx - 1) * self.ny + self.nx * (self.ny - 1) - (self.nx * self.ny - 1)
-        if not 0 <= self.n_loops <= max_loops:
-            raise ValueError(f"a {self.nx} x {self.ny} lattice has room for 0 to {max_loops} loops, got {self.n_loops}")
+        if not self.n_loops <= max_loops:
+            fail(self, "n_loops", f"0 to {max_loops} (the loops a {self.nx} x {self.ny} lattice has room for)",
+                 self.n_loops)
         if not self.corridor_width < self.room_size < 2 * (self.spacing - self.corridor_width):
-            raise ValueError(f"room_size must exceed the corridor width and stay below "
-                             f"{2 * (self.spacing - self.corridor_width)} m so rooms do not touch other corridors")
-        if not 0.0 <= self.room_probability <= 1.0:
-            raise ValueError(f"room_probability must be in [0, 1], got {self.room_probability}")
+            fail(self, "room_size", f"above the corridor width and below {2 * (self.spacing - self.corridor_width):g}"
+                 " m, so rooms do not touch other corridors", self.room_size)
+        extent = max(self.nx, self.ny) * self.spacing
+        if extent > MAX_EXTENT:
+            fail(self, "spacing", f"a lattice at most {MAX_EXTENT:g} m across (max(nx, ny) * spacing = {extent:g} m; "
+                 f"its {_LAYOUT} m layout raster would take {(extent / _LAYOUT) ** 2 / 1e9:.1f} GB)", self.spacing)
 
 
 def _lattice_graph(cfg: GeneratorConfig, rng: np.random.Generator) -> set[tuple[tuple[int, int], tuple[int, int]]]:

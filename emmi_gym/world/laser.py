@@ -7,7 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..validation import Integer, Real, check_fields, option
 from ._raycast import cast_rays
+
+#: Upper bounds of the laser's sizes: real scanners have at most a few thousand beams and 80 m range.
+MAX_BEAMS = 10_000
+MAX_RANGE = 100.0
 
 
 @dataclass(frozen=True)
@@ -18,23 +23,14 @@ class LaserConfig:
     ``max_range``, as real scanners report a missing echo).
     """
 
-    fov: float = 2.0 * math.pi
-    n_beams: int = 180
-    max_range: float = 8.0
-    range_sigma: float = 0.02
-    drop_probability: float = 0.01
+    fov: float = option(2.0 * math.pi, Real(0.0, 2.0 * math.pi, open_lo=True, unit="radians"))
+    n_beams: int = option(180, Integer(1, MAX_BEAMS, "each beam is cast at every simulator step"))
+    max_range: float = option(8.0, Real(0.0, MAX_RANGE, open_lo=True, unit="m"))
+    range_sigma: float = option(0.02, Real(0.0, 1.0, unit="m"))
+    drop_probability: float = option(0.01, Real(0.0, 1.0, open_hi=True))
 
     def __post_init__(self):
-        if not (0.0 < self.fov <= 2.0 * math.pi):
-            raise ValueError(f"laser fov must be in (0, 2 pi] radians, got {self.fov!r}")
-        if int(self.n_beams) != self.n_beams or self.n_beams < 1:
-            raise ValueError(f"laser n_beams must be a positive integer, got {self.n_beams!r}")
-        if not self.max_range > 0:
-            raise ValueError(f"laser max_range must be positive, got {self.max_range!r}")
-        if not self.range_sigma >= 0:
-            raise ValueError(f"laser range_sigma must be >= 0, got {self.range_sigma!r}")
-        if not 0.0 <= self.drop_probability < 1.0:
-            raise ValueError(f"laser drop_probability must be in [0, 1), got {self.drop_probability!r}")
+        check_fields(self)
 
     @property
     def angles(self) -> np.ndarray:

@@ -8,12 +8,16 @@ The noise is drawn once per control period, so the alphas are per control period
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..motion import perturb_motion
+from ..validation import Real, check_fields, option
+
+#: Upper bound of each alpha: at 1 a motion's noise is as large as the motion itself (the
+#: defaults are 0.0005-0.02); beyond, dead reckoning is meaningless and poses run off to 1e100s.
+MAX_ALPHA = 1.0
 
 
 @dataclass(frozen=True)
@@ -30,19 +34,14 @@ class OdometryNoise:
     median 0.14 rad); ``scripts/odometry_drift.py`` measures it.
     """
 
-    rot_from_rot: float = 0.02
-    rot_from_trans: float = 0.003
-    trans_from_trans: float = 0.01
-    trans_from_rot: float = 0.0005
-    heading_drift: float = 0.0015
+    rot_from_rot: float = option(0.02, Real(0.0, MAX_ALPHA))
+    rot_from_trans: float = option(0.003, Real(0.0, MAX_ALPHA))
+    trans_from_trans: float = option(0.01, Real(0.0, MAX_ALPHA))
+    trans_from_rot: float = option(0.0005, Real(0.0, MAX_ALPHA))
+    heading_drift: float = option(0.0015, Real(-1.0, 1.0, unit="rad/m"))
 
     def __post_init__(self):
-        for name in ("rot_from_rot", "rot_from_trans", "trans_from_trans", "trans_from_rot"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"odometry noise {name} must be a finite number >= 0, got {value!r}")
-        if not math.isfinite(self.heading_drift):
-            raise ValueError(f"odometry heading_drift must be finite, got {self.heading_drift!r}")
+        check_fields(self)
 
     @property
     def alphas(self) -> tuple[float, float, float, float]:

@@ -1,0 +1,226 @@
+"""One mechanism for checking what users hand in: option dataclasses, their fields and bounds.
+
+Each checked dataclass declares its fields with :func:`option` (a default and a :class:`Check`);
+its ``__post_init__`` calls :func:`check_fields`, and :func:`build` makes one from a dict of
+options (unknown names, wrong types and values out of bounds all raise :class:`OptionError`
+naming the option, what was expected and a short excerpt of what was found). Upper bounds keep
+a few bytes of input from asking for gigabytes; where a bound is about memory the message says
+how much the value would take.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+from .errors import FieldError, excerpt
+
+
+class OptionError(FieldError):
+    """An option (``gym.make`` keyword, nested option dict, configuration field) is invalid."""
+
+    def __init__(self, field_path: str, expected: str, got=FieldError.NOTHING, source: str = "option"):
+        super().__init__(source, field_path, expected, got)
+
+
+class Invalid(Exception):
+    """Raised by a :class:`Check` with the text of what was expected."""
+
+
+class Check:
+    """Validates and normalises one value; ``describe`` is the 'expected ...' text."""
+
+    def __call__(self, value):
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        raise NotImplementedError
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class Real(Check):
+    """A finite number in [lo, hi] (open ends with ``open_lo``/``open_hi``); ints become floats."""
+
+    lo: float = -math.inf
+    hi: float = math.inf
+    open_lo: bool = False
+    open_hi: bool = False
+    unit: str = ""
+
+    def describe(self) -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        if self.lo == -math.inf and self.hi == math.inf:
+            return f"a finite number{unit}"
+        lo = "(-inf" if self.lo == -math.inf else ("(" if self.open_lo else "[") + f"{self.lo:g}"
+        hi = "inf)" if self.hi == math.inf else f"{self.hi:g}" + (")" if self.open_hi else "]")
+        return f"a finite number in {lo}, {hi}{unit}"
+
+    def __call__(self, value):
+        if not _is_number(value) or not math.isfinite(value):
+            raise Invalid(self.describe())
+        too_low = value <= self.lo if self.open_lo else value < self.lo
+        too_high = value >= self.hi if self.open_hi else value > self.hi
+        if too_low or too_high:
+            raise Invalid(self.describe())
+        return float(value)
+
+
+@dataclass(frozen=True)
+class Integer(Check):
+    """A whole number in [lo, hi] (``3.0`` is not one: a count written as a float is a mistake)."""
+
+    lo: int = 0
+    hi: int = 2**31 - 1
+    note: str = ""  # why the upper bound (the memory a large value implies)
+
+    def describe(self) -> str:
+        note = f" ({self.note})" if self.note else ""
+        return f"an integer in [{self.lo}, {self.hi}]{note}"
+
+    def __call__(self, value):
+        if isinstance(value, bool) or not isinstance(value, int) or not self.lo <= value <= self.hi:
+            raise Invalid(self.describe())
+        return int(value)
+
+
+@dataclass(frozen=True)
+class Boolean(Check):
+    def describe(self) -> str:
+        return "true or false"
+
+    def __call__(self, value):
+        if not isinstance(value, bool):
+            raise Invalid(self.describe())
+        return value
+
+
+@dataclass(frozen=True)
+class Choice(Check):
+    values: tuple
+
+    def describe(self) -> str:
+        return f"one of {list(self.values)}"
+
+    def __call__(self, value):
+        if not isinstance(value, (str, type(None))) or value not in self.values:
+            raise Invalid(self.describe())
+        return value
+
+
+@dataclass(frozen=True)
+class Text(Check):
+    """A non-empty string (a name or a path)."""
+
+    def describe(self) -> str:
+        return "a non-empty string"
+
+    def __call__(self, value):
+        if not isinstance(value, str) or not value:
+            raise Invalid(self.describe())
+        return value
+
+
+@dataclass(frozen=True)
+class Mapping(Check):
+    """A dict of nested options (checked by whoever builds from it)."""
+
+    def describe(self) -> str:
+        return "a mapping of options"
+
+    def __call__(self, value):
+        if not isinstance(value, dict):
+            raise Invalid(self.describe())
+        return dict(value)
+
+
+@dataclass(frozen=True)
+class Maybe(Check):
+    """``None`` or what ``inner`` accepts."""
+
+    inner: Check
+    meaning: str = ""
+
+    def describe(self) -> str:
+        meaning = f" ({self.meaning})" if self.meaning else ""
+        return f"{self.inner.describe()} or null{meaning}"
+
+    def __call__(self, value):
+        if value is None:
+            return None
+        try:
+            return self.inner(value)
+        except Invalid:
+            raise Invalid(self.describe()) from None
+
+
+@dataclass(frozen=True)
+class Tuple(Check):
+    """A fixed-length list or tuple whose every item ``inner`` accepts."""
+
+    inner: Check
+    length: int
+
+    def describe(self) -> str:
+        return f"{self.length} items, each {self.inner.describe()}"
+
+    def __call__(self, value):
+        if not isinstance(value, (list, tuple)) or len(value) != self.length:
+            raise Invalid(self.describe())
+        try:
+            return tuple(self.inner(v) for v in value)
+        except Invalid:
+            raise Invalid(self.describe()) from None
+
+
+def option(default, check: Check):
+    """A dataclass field with a default and the :class:`Check` that :func:`check_fields` applies."""
+    if isinstance(default, (dict, list)):
+        return field(default_factory=lambda: type(default)(default), metadata={"check": check})
+    return field(default=default, metadata={"check": check})
+
+
+def check_fields(instance) -> None:
+    """Apply every field's :class:`Check` to a (frozen) dataclass instance, storing the normalised values."""
+    for f in fields(instance):
+        check = f.metadata.get("check")
+        if check is None:
+            continue
+        value = getattr(instance, f.name)
+        try:
+            object.__setattr__(instance, f.name, check(value))
+        except Invalid as exc:
+            raise OptionError(f.name, str(exc), value, source=type(instance).__name__) from None
+
+
+def fail(instance, name: str, expected: str, got=FieldError.NOTHING):
+    """Raise the :class:`OptionError` of a rule across fields (checked after :func:`check_fields`)."""
+    raise OptionError(name, expected, got, source=type(instance).__name__)
+
+
+def build(cls, options, label: str, source: str = "option"):
+    """``cls(**options)``: unknown names and bad values raise :class:`OptionError` naming the field
+    ``label.name`` and ``source`` (``"gym.make"``, a file)."""
+    if options is None:
+        options = {}
+    if not isinstance(options, dict):
+        raise OptionError(label or "<options>", "a mapping of options", options, source=source)
+    valid = [f.name for f in fields(cls)]
+    unknown = sorted(set(map(str, options)) - set(valid))
+    if unknown:
+        raise OptionError(_join(label, unknown[0]), f"one of the known options {valid}", source=source)
+    try:
+        return cls(**options)
+    except OptionError as exc:
+        raise OptionError(_join(label, exc.field), exc.expected, exc.got, source=source) from None
+
+
+def _join(label: str, name: str) -> str:
+    return f"{label}.{name}" if label else name
+
+
+__all__ = ["Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Real", "Text",
+           "Tuple", "build", "check_fields", "excerpt", "fail", "option"]
