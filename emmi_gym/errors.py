@@ -24,11 +24,13 @@ def excerpt(value) -> str:
 
 
 class FieldError(ValueError):
-    """Input is malformed; says where (a file or ``option``), which field, what was expected and what it got."""
+    """Input is malformed; says where (a file or ``gym.make``), which field (none: the whole file),
+    what was expected and (a short excerpt of) what it got."""
 
     NOTHING = object()  # no value to show (a missing field, an unknown key)
 
     def __init__(self, source: str, field_path: str, expected: str, got=NOTHING):
         self.source, self.field, self.expected, self.got = source, field_path, expected, got
         got_text = "" if got is FieldError.NOTHING else f", got {excerpt(got)}"
-        super().__init__(f"{source}: field '{field_path}': expected {expected}{got_text}")
+        where = f"{source}: field '{field_path}'" if field_path else source
+        super().__init__(f"{where}: expected {expected}{got_text}")

@@ -19,9 +19,6 @@ from .errors import FieldError, excerpt
 class OptionError(FieldError):
     """An option (``gym.make`` keyword, nested option dict, configuration field) is invalid."""
 
-    def __init__(self, field_path: str, expected: str, got=FieldError.NOTHING, source: str = "option"):
-        super().__init__(source, field_path, expected, got)
-
 
 class Invalid(Exception):
     """Raised by a :class:`Check` with the text of what was expected."""
@@ -193,29 +190,37 @@ def check_fields(instance) -> None:
         try:
             object.__setattr__(instance, f.name, check(value))
         except Invalid as exc:
-            raise OptionError(f.name, str(exc), value, source=type(instance).__name__) from None
+            raise OptionError(type(instance).__name__, f.name, str(exc), value) from None
 
 
 def fail(instance, name: str, expected: str, got=FieldError.NOTHING):
     """Raise the :class:`OptionError` of a rule across fields (checked after :func:`check_fields`)."""
-    raise OptionError(name, expected, got, source=type(instance).__name__)
+    raise OptionError(type(instance).__name__, name, expected, got)
 
 
-def build(cls, options, label: str, source: str = "option"):
-    """``cls(**options)``: unknown names and bad values raise :class:`OptionError` naming the field
-    ``label.name`` and ``source`` (``"gym.make"``, a file)."""
+def build(cls, options, label: str, source: str = "option", error=OptionError):
+    """``cls(**options)``: unknown names and bad values raise ``error`` (a :class:`FieldError`) naming
+    ``source`` (``"gym.make"``, a file) and the field ``label.name``."""
     if options is None:
         options = {}
     if not isinstance(options, dict):
-        raise OptionError(label or "<options>", "a mapping of options", options, source=source)
+        raise error(source, label or "<options>", "a mapping of options", options)
     valid = [f.name for f in fields(cls)]
     unknown = sorted(set(map(str, options)) - set(valid))
     if unknown:
-        raise OptionError(_join(label, unknown[0]), f"one of the known options {valid}", source=source)
+        raise error(source, _join(label, unknown[0]), f"one of the known options {valid}")
     try:
         return cls(**options)
     except OptionError as exc:
-        raise OptionError(_join(label, exc.field), exc.expected, exc.got, source=source) from None
+        raise error(source, _join(label, exc.field), exc.expected, exc.got) from None
+
+
+def check_value(value, check: Check, source: str, name: str, error=OptionError):
+    """``check(value)``, or ``error`` naming ``source`` and the field ``name``."""
+    try:
+        return check(value)
+    except Invalid as exc:
+        raise error(source, name, str(exc), value) from None
 
 
 def _join(label: str, name: str) -> str:
@@ -223,4 +228,4 @@ def _join(label: str, name: str) -> str:
 
 
 __all__ = ["Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Real", "Text",
-           "Tuple", "build", "check_fields", "excerpt", "fail", "option"]
+           "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "option"]

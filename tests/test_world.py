@@ -105,6 +105,8 @@ def test_generator_rejects_bad_parameters():
         GeneratorConfig(nx=2, ny=2, n_loops=5)
     with pytest.raises(ValueError, match="corridor_width"):
         GeneratorConfig(corridor_width=5.0)
+    with pytest.raises(ValueError, match=r"field 'spacing': expected a lattice at most 400 m across .* GB"):
+        GeneratorConfig(nx=20, spacing=30.0, corridor_width=2.0)
 
 
 # ------------------------------------------------------------------ loader errors
@@ -116,10 +118,17 @@ def test_generator_rejects_bad_parameters():
     (box(colour="red"), "colour", "known keys"),
     (box(start={"x": 0, "y": 0, "heading": 1}), "start.heading", "known keys"),
     (box(walls=[{"segment": {"from": [0, 0], "to": [1, 1], "thickness": 0}}]), "walls[0].segment.thickness",
-     "positive"),
+     r"in \[0.01, 5\] m"),
     (box(walls=[{"segment": {"from": [0, 0], "to": [1, 1], "thickness": -0.1}}]), "walls[0].segment.thickness",
-     "positive"),
-    (box(wall_thickness=0), "wall_thickness", "positive"),
+     r"in \[0.01, 5\] m"),
+    (box(wall_thickness=0), "wall_thickness", r"in \[0.01, 5\] m"),
+    (box(wall_thickness=float("nan")), "wall_thickness", r"in \[0.01, 5\] m, got nan"),
+    (box(bounds={"xmin": -3, "ymin": -3, "xmax": 1e5, "ymax": 3}), "bounds.xmax", r"in \[-10000, 10000\] m"),
+    (box(bounds={"xmin": -3000, "ymin": -3, "xmax": 3, "ymax": 3}), "bounds.xmax", "at most 2000 m across"),
+    (box(start={"x": 1e300, "y": 0}), "start.x", r"in \[-10000, 10000\] m"),
+    (box(start={"x": "1.0e5", "y": 0}), "start.x", "write exponents with a sign or a dot"),
+    (box(routes={"r": ["start", [1, 1], [1, 2.5]]}), "routes.r[2]",
+     r"drive to straight from the one before; at \(1.00, 1.75\) it would overlap the wall from"),
     (box(bounds={"xmin": 3, "ymin": -3, "xmax": 3, "ymax": 3}), "bounds.xmax", "greater than"),
     (box(walls=[{"rectangle": {"min": [1, 1], "max": [0, 2]}}]), "walls[0].rectangle.max", "positive width"),
     (box(walls=[{"segment": {"from": [1, 1], "to": [1, 1]}}]), "walls[0].segment", "positive length"),
@@ -139,7 +148,7 @@ def test_malformed_world_names_the_field(data, field, expected):
     with pytest.raises(WorldFileError, match=expected) as info:
         parse_world(data, source="bad.yaml")
     assert info.value.field == field
-    assert str(info.value).startswith("bad.yaml: field ")
+    assert str(info.value).startswith(f"bad.yaml: field '{field}': " if field else "bad.yaml: expected")
 
 
 def test_world_file_errors_name_the_file(tmp_path):

@@ -17,9 +17,21 @@ import inspect
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import yaml
-
 from ..errors import FieldError
+from ..validation import (
+    Boolean,
+    Check,
+    Choice,
+    Integer,
+    Mapping,
+    Maybe,
+    Real,
+    build,
+    check_fields,
+    check_value,
+    option,
+)
+from ..yaml_files import YAML_SUFFIXES, read_yaml_file
 
 #: The algorithms a configuration may name: Stable-Baselines3's and sb3-contrib's classes.
 ALGORITHMS = ("PPO", "A2C", "MaskablePPO", "DQN", "SAC")
@@ -58,9 +70,12 @@ class EvalSchedule:
     """Evaluate every ``freq`` environment steps (summed over the envs) on ``episodes`` held-out
     episodes seeded from ``seed`` on (the same episodes at every evaluation)."""
 
-    freq: int = 2000
-    episodes: int = 4
-    seed: int = 100_000
+    freq: int = option(2000, Integer(1, 10**10))
+    episodes: int = option(4, Integer(1, 10**5))
+    seed: int = option(100_000, Integer(0, 2**32 - 1))
+
+    def __post_init__(self):
+        check_fields(self)
 
 
 @dataclass(frozen=True)
@@ -99,22 +114,15 @@ def _merge(base: dict, override: dict, whole=("hyperparameters",)) -> dict:
 
 
 def _read(path: Path, seen: tuple[Path, ...] = ()) -> dict:
-    if not path.is_file():
-        raise FileNotFoundError(f"agent configuration {path} does not exist")
     if path.resolve() in seen:
         raise AgentConfigError(str(path), "base", "no cycle of base files", [str(p) for p in seen])
-    with open(path) as f:
-        try:
-            data = yaml.safe_load(f)
-        except yaml.YAMLError as exc:
-            raise AgentConfigError(str(path), "<file>", f"valid YAML ({exc})") from None
-    if not isinstance(data, dict):
-        raise AgentConfigError(str(path), "<file>", "a mapping of configuration fields", data)
+    data = read_yaml_file(path, "agent configuration", AgentConfigError)
     if "base" in data:
-        if not isinstance(data["base"], str):
-            raise AgentConfigError(str(path), "base", "a file name relative to this file", data["base"])
-        base = _read(path.parent / data["base"], seen + (path.resolve(),))
-        data = _merge(base, {k: v for k, v in data.items() if k != "base"})
+        base = data["base"]
+        if not isinstance(base, str) or Path(base).suffix.lower() not in YAML_SUFFIXES:
+            raise AgentConfigError(str(path), "base", "the name of a .yaml file, relative to this file", base)
+        data = _merge(_read(path.parent / base, seen + (path.resolve(),)),
+                      {k: v for k, v in data.items() if k != "base"})
     return data
 
 
@@ -124,75 +132,118 @@ def load_agent_config(path) -> AgentConfig:
     return parse_agent_config(_read(path), source=str(path))
 
 
-def _integer(source: str, name: str, value, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise AgentConfigError(source, name, f"an integer >= {minimum}", value)
-    return value
+#: Upper bounds of an agent configuration's sizes: each env is a process with its own filter and maps
+#: (about 100-300 MB), so 64 fill a large machine.
+MAX_ENVS = 64
+_STEPS = Integer(1, 10**10)
+#: Ranges of the hyperparameters whose meaning bounds them (others are checked by their type).
+_HYPERPARAMETER_RANGES = {
+    "learning_rate": Real(0.0, 1.0, open_lo=True), "gamma": Real(0.0, 1.0), "gae_lambda": Real(0.0, 1.0),
+    "n_steps": Integer(1, 10**6), "batch_size": Integer(1, 10**6), "n_epochs": Integer(1, 10**4),
+    "buffer_size": Integer(1, 10**7, "the replay buffer holds that many observations"),
+    "clip_range": Real(0.0, 10.0, open_lo=True), "ent_coef": Real(0.0, 10.0), "vf_coef": Real(0.0, 10.0),
+    "max_grad_norm": Real(0.0, 1e6, open_lo=True), "tau": Real(0.0, 1.0), "exploration_fraction": Real(0.0, 1.0),
+    "exploration_initial_eps": Real(0.0, 1.0), "exploration_final_eps": Real(0.0, 1.0),
+}
+#: Which action spaces each algorithm can drive, and which observation spaces each policy reads.
+_ACTION_SPACES = {"PPO": ("Discrete", "Box"), "A2C": ("Discrete", "Box"), "MaskablePPO": ("Discrete",),
+                  "DQN": ("Discrete",), "SAC": ("Box",)}
+_OBSERVATION_SPACES = {"MultiInputPolicy": "Dict", "TargetScoringPolicy": "Dict", "CnnPolicy": "Box",
+                       "MlpPolicy": "Box"}
+
+
+def _hyperparameter_check(name: str, default) -> Check | None:
+    """The check of a hyperparameter: its range if known, else one by the type of the algorithm's default."""
+    if name in _HYPERPARAMETER_RANGES:
+        return _HYPERPARAMETER_RANGES[name]
+    if isinstance(default, bool):
+        return Boolean()
+    if isinstance(default, int):
+        return Integer(-10**9, 10**9)
+    if isinstance(default, float):
+        return Real()
+    if isinstance(default, dict) or name.endswith("_kwargs"):
+        return Maybe(Mapping())
+    return None  # strings, tuples, None defaults: SB3 checks what it accepts
+
+
+def _check_hyperparameters(source: str, algorithm: str, hyper: dict) -> dict:
+    reserved = ("self", "policy", "env", "seed", "tensorboard_log", "verbose", "device", "_init_setup_model")
+    parameters = {name: p for name, p in inspect.signature(algorithm_class(algorithm).__init__).parameters.items()
+                  if name not in reserved}
+    checked = {}
+    for name, value in hyper.items():
+        if name not in parameters:
+            raise AgentConfigError(source, f"hyperparameters.{name}", f"a keyword of {algorithm}: one of "
+                                   f"{list(parameters)}")
+        check = _hyperparameter_check(name, parameters[name].default)
+        checked[name] = value if check is None else check_value(value, check, source, f"hyperparameters.{name}",
+                                                                AgentConfigError)
+    return checked
+
+
+def _check_env(source: str, env_id: str, kwargs: dict, algorithm: str, policy: str) -> None:
+    """Make the env once, here in the main process (a mistake then fails before any worker starts), and
+    check that the algorithm can drive its actions and the policy read its observations."""
+    import gymnasium as gym
+
+    import emmi_gym  # noqa: F401  (registers the ids)
+
+    try:
+        env = gym.make(env_id, **kwargs)
+    except FieldError as exc:
+        raise AgentConfigError(source, f"env.kwargs.{exc.field}", exc.expected, exc.got) from None
+    except ValueError as exc:
+        raise AgentConfigError(source, "env.kwargs", f"valid environment options ({exc})") from None
+    action, observation = type(env.action_space).__name__, type(env.observation_space).__name__
+    env.close()
+    if action not in _ACTION_SPACES[algorithm]:
+        raise AgentConfigError(source, "algorithm", f"an algorithm for the {action} actions of {env_id} (one of "
+                               f"{[a for a, kinds in _ACTION_SPACES.items() if action in kinds]})", algorithm)
+    if observation != _OBSERVATION_SPACES[policy]:
+        raise AgentConfigError(source, "policy", f"a policy for the {observation} observations of {env_id} (one of "
+                               f"{[p for p, kind in _OBSERVATION_SPACES.items() if kind == observation]})", policy)
 
 
 def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
-    """Check a configuration given as a dict (as read from YAML) and resolve it."""
+    """Check a whole configuration given as a dict (as read from YAML), making its env once, and resolve it."""
     from ..env import ENV_IDS
-    from ..env.config import make_config
 
-    unknown = sorted(set(data) - set(_KEYS))
+    def field(name: str, check: Check, default=None):
+        return check_value(data.get(name, default), check, source, name, AgentConfigError)
+
+    unknown = sorted(set(map(str, data)) - set(_KEYS))
     if unknown:
         raise AgentConfigError(source, unknown[0], f"one of the fields {list(_KEYS)}")
     env = data.get("env")
-    if not isinstance(env, dict) or not isinstance(env.get("id"), str):
+    if not isinstance(env, dict) or not isinstance(env.get("id"), str) or set(env) - {"id", "kwargs"}:
         raise AgentConfigError(source, "env", "a mapping with an 'id' (and optional 'kwargs')", env)
-    valid_ids = [f"emmi_gym/{name}" for name in ENV_IDS]
-    if env["id"] not in valid_ids:
-        raise AgentConfigError(source, "env.id", f"one of {valid_ids}", env["id"])
-    kwargs = env.get("kwargs") or {}
-    if not isinstance(kwargs, dict):
-        raise AgentConfigError(source, "env.kwargs", "a mapping of gym.make keywords", kwargs)
-    try:
-        make_config(**kwargs)
-    except (ValueError, TypeError) as exc:
-        raise AgentConfigError(source, "env.kwargs", f"valid environment options ({exc})") from None
-    algorithm = data.get("algorithm")
-    if algorithm not in ALGORITHMS:
-        raise AgentConfigError(source, "algorithm", f"one of {list(ALGORITHMS)}", algorithm)
-    policy = data.get("policy", "MultiInputPolicy")
-    if policy not in POLICIES:
-        raise AgentConfigError(source, "policy", f"one of {list(POLICIES)}", policy)
+    env_id = check_value(env["id"], Choice(tuple(f"emmi_gym/{name}" for name in ENV_IDS)), source, "env.id",
+                         AgentConfigError)
+    kwargs = check_value(env.get("kwargs") or {}, Mapping(), source, "env.kwargs", AgentConfigError)
+    algorithm = field("algorithm", Choice(ALGORITHMS))
+    policy = field("policy", Choice(POLICIES), "MultiInputPolicy")
     if policy == "TargetScoringPolicy" and algorithm != "MaskablePPO":
         raise AgentConfigError(source, "policy", "TargetScoringPolicy only with algorithm MaskablePPO", policy)
-    hyper = data.get("hyperparameters") or {}
-    if not isinstance(hyper, dict):
-        raise AgentConfigError(source, "hyperparameters", "a mapping of the algorithm's keywords", hyper)
-    reserved = ("self", "policy", "env", "seed", "tensorboard_log", "verbose", "device", "_init_setup_model")
-    accepted = [p for p in inspect.signature(algorithm_class(algorithm).__init__).parameters if p not in reserved]
-    for name in hyper:
-        if name not in accepted:
-            raise AgentConfigError(source, f"hyperparameters.{name}", f"a keyword of {algorithm}: one of {accepted}")
-    for name in ("rollout_buffer_class", "rollout_buffer_kwargs"):
-        if name in hyper and data.get("discount_unit") is not None:
-            raise AgentConfigError(source, f"hyperparameters.{name}", "not given with discount_unit (which sets the "
-                                   "rollout buffer)")
-    discount_unit = data.get("discount_unit")
+    hyper = _check_hyperparameters(source, algorithm, field("hyperparameters", Maybe(Mapping())) or {})
+    discount_unit = field("discount_unit", Maybe(Integer(1, 10**6)))
     if discount_unit is not None:
         from .semi_markov import SUPPORTED
 
-        _integer(source, "discount_unit", discount_unit, 1)
         if algorithm not in SUPPORTED:
             raise AgentConfigError(source, "discount_unit", f"absent for {algorithm} (semi-Markov discounting is "
                                    f"implemented for {list(SUPPORTED)})", discount_unit)
-    vec_env = data.get("vec_env", "subproc")
-    if vec_env not in VEC_ENVS:
-        raise AgentConfigError(source, "vec_env", f"one of {list(VEC_ENVS)}", vec_env)
-    schedule = data.get("eval") or {}
-    if not isinstance(schedule, dict) or set(schedule) - {"freq", "episodes", "seed"}:
-        raise AgentConfigError(source, "eval", "a mapping with freq, episodes and seed", schedule)
-    defaults = EvalSchedule()
-    eval_schedule = EvalSchedule(
-        freq=_integer(source, "eval.freq", schedule.get("freq", defaults.freq), 1),
-        episodes=_integer(source, "eval.episodes", schedule.get("episodes", defaults.episodes), 1),
-        seed=_integer(source, "eval.seed", schedule.get("seed", defaults.seed), 0))
-    return AgentConfig(
-        env_id=env["id"], env_kwargs=dict(kwargs), algorithm=algorithm, policy=policy, hyperparameters=dict(hyper),
-        discount_unit=discount_unit, n_envs=_integer(source, "n_envs", data.get("n_envs", 2), 1), vec_env=vec_env,
-        total_timesteps=_integer(source, "total_timesteps", data.get("total_timesteps", 20_000), 1),
-        seed=_integer(source, "seed", data.get("seed", 0), 0), eval=eval_schedule,
-        checkpoint_freq=_integer(source, "checkpoint_freq", data.get("checkpoint_freq", 5000), 1), source=source)
+        for name in ("rollout_buffer_class", "rollout_buffer_kwargs"):
+            if name in hyper:
+                raise AgentConfigError(source, f"hyperparameters.{name}", "not given with discount_unit (which sets "
+                                       "the rollout buffer)")
+    eval_schedule = build(EvalSchedule, field("eval", Maybe(Mapping())), "eval", source, AgentConfigError)
+    config = AgentConfig(
+        env_id=env_id, env_kwargs=dict(kwargs), algorithm=algorithm, policy=policy, hyperparameters=hyper,
+        discount_unit=discount_unit, n_envs=field("n_envs", Integer(1, MAX_ENVS, "each env is a process with its "
+                                                                    "own filter, 100-300 MB"), 2),
+        vec_env=field("vec_env", Choice(VEC_ENVS), "subproc"), total_timesteps=field("total_timesteps", _STEPS, 20_000),
+        seed=field("seed", Integer(0, 2**32 - 1), 0), eval=eval_schedule,
+        checkpoint_freq=field("checkpoint_freq", _STEPS, 5000), source=source)
+    _check_env(source, env_id, kwargs, algorithm, policy)
+    return config

@@ -21,7 +21,7 @@ import gymnasium as gym
 import yaml
 
 from .callbacks import eval_callback_class
-from .config import AgentConfig, algorithm_class, parse_agent_config, policy_argument
+from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument
 from .loop_order import LoopOrderInfo
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
@@ -68,8 +68,7 @@ def load_run_config(model_path) -> AgentConfig:
     model_path = Path(model_path)
     for folder in (model_path.parent, model_path.parent.parent):
         if (folder / "config.yaml").is_file():
-            with open(folder / "config.yaml") as f:
-                return parse_agent_config(yaml.safe_load(f), source=str(folder / "config.yaml"))
+            return load_agent_config(folder / "config.yaml")
     raise FileNotFoundError(f"no config.yaml beside {model_path} or in its run folder: was it written by "
                             f"'emmi-gym train'?")
 

@@ -27,8 +27,9 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
-
+from ..errors import excerpt
+from ..validation import Invalid, Real
+from ..yaml_files import YAML_SUFFIXES, parse_yaml, read_yaml_file
 from .spec import ROBOT_RADIUS, Place, WorldFileError, WorldSpec, point_segment_distance
 
 _TOP_KEYS = {"name", "description", "bounds", "wall_thickness", "walls", "start", "places", "routes"}
@@ -37,6 +38,21 @@ _WALL_KINDS = {"segment": {"from", "to", "thickness"},
                "polyline": {"points", "closed", "thickness"},
                "rectangle": {"min", "max", "thickness"}}
 _DEFAULT_THICKNESS = 0.2
+#: Bounds of the numbers in a world file: coordinates (m), wall thickness, the world's size (the
+#: ground truth and every particle's map cover it: 2 km at 0.1 m are 400 M cells per map).
+COORDINATE = Real(-1e4, 1e4, unit="m")
+THICKNESS = Real(0.01, 5.0, unit="m")
+MAX_WORLD_SIZE = 2000.0
+#: Spacing (m) of the points at which a route's legs are checked against the walls.
+ROUTE_CHECK_STEP = 0.05
+
+
+def _looks_numeric(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def builtin_worlds() -> list[str]:
@@ -46,23 +62,15 @@ def builtin_worlds() -> list[str]:
 
 
 def load_world(name_or_path) -> WorldSpec:
-    """Load a built-in world by name (``"loop_corridor"``) or a world file by path."""
-    path = Path(str(name_or_path))
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        if not path.is_file():
-            raise FileNotFoundError(f"world file {path} does not exist")
-        return parse_world(_read_yaml(path.read_text(), str(path)), source=str(path))
-    if str(name_or_path) not in builtin_worlds():
-        raise ValueError(f"unknown world {name_or_path!r}: give a path to a .yaml file or one of {builtin_worlds()}")
-    text = resources.files("emmi_gym.worlds_data").joinpath(f"{name_or_path}.yaml").read_text()
-    return parse_world(_read_yaml(text, f"{name_or_path}.yaml"), source=f"{name_or_path}.yaml")
-
-
-def _read_yaml(text: str, source: str):
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise WorldFileError(source, "<file>", "valid YAML", str(exc).splitlines()[0]) from None
+    """Load a built-in world by name (``"loop_corridor"``) or a world file (``.yaml``) by path."""
+    name = str(name_or_path)
+    path = Path(name)
+    if path.suffix.lower() in YAML_SUFFIXES or path.exists():
+        return parse_world(read_yaml_file(path, "world file", WorldFileError), source=str(path))
+    if name not in builtin_worlds():
+        raise ValueError(f"unknown world {excerpt(name)}: give a path to a .yaml file or one of {builtin_worlds()}")
+    text = resources.files("emmi_gym.worlds_data").joinpath(f"{name}.yaml").read_text()
+    return parse_world(parse_yaml(text, f"{name}.yaml", WorldFileError), source=f"{name}.yaml")
 
 
 class _Reader:
@@ -71,11 +79,13 @@ class _Reader:
     def __init__(self, source: str):
         self.source = source
 
-    def fail(self, path: str, expected: str, got=None):
+    def fail(self, path: str, expected: str, got=WorldFileError.NOTHING):
         raise WorldFileError(self.source, path, expected, got)
 
     def mapping(self, value, path: str, allowed: set[str], required=()) -> dict:
         if not isinstance(value, dict):
+            if not path:  # the whole file: its type, not its content (which may be any file's)
+                self.fail("", f"a mapping of world fields, not a {type(value).__name__}")
             self.fail(path, "a mapping", value)
         unknown = sorted(set(map(str, value)) - allowed)
         if unknown:
@@ -85,12 +95,13 @@ class _Reader:
                 self.fail(f"{path}.{key}" if path else key, "a value (the field is required)")
         return value
 
-    def number(self, value, path: str, *, positive=False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            self.fail(path, "a finite number", value)
-        if positive and value <= 0:
-            self.fail(path, "a positive number", value)
-        return float(value)
+    def number(self, value, path: str, check: Real = COORDINATE) -> float:
+        try:
+            return check(value)
+        except Invalid as exc:
+            hint = " (write exponents with a sign or a dot: 1.0e+5)" if isinstance(value, str) and _looks_numeric(
+                value) else ""
+            self.fail(path, f"{exc}{hint}", value)
 
     def point(self, value, path: str) -> tuple[float, float]:
         if not isinstance(value, (list, tuple)) or len(value) != 2:
@@ -119,7 +130,11 @@ def parse_world(data, source: str = "<dict>") -> WorldSpec:
     if bounds[3] <= bounds[1]:
         r.fail("bounds.ymax", f"a number greater than bounds.ymin = {bounds[1]}", bounds[3])
 
-    default_thickness = r.number(data.get("wall_thickness", _DEFAULT_THICKNESS), "wall_thickness", positive=True)
+    for axis, lo, hi in (("x", bounds[0], bounds[2]), ("y", bounds[1], bounds[3])):
+        if hi - lo > MAX_WORLD_SIZE:
+            r.fail(f"bounds.{axis}max", f"a world at most {MAX_WORLD_SIZE:g} m across (its ground truth and every "
+                   f"particle's map cover the bounds), here {hi - lo:g} m", hi)
+    default_thickness = r.number(data.get("wall_thickness", _DEFAULT_THICKNESS), "wall_thickness", THICKNESS)
     walls = _parse_walls(r, data["walls"], default_thickness)
     start = _parse_place(r, data["start"], "start")
     _check_start(r, start, bounds, walls)
@@ -140,6 +155,7 @@ def parse_world(data, source: str = "<dict>") -> WorldSpec:
         if not isinstance(waypoints, list) or len(waypoints) < 2:
             r.fail(path, "a list of at least two waypoints (place names or [x, y])", waypoints)
         routes[str(key)] = [_waypoint(r, w, f"{path}[{i}]", places) for i, w in enumerate(waypoints)]
+        _check_route(r, path, routes[str(key)], bounds, walls)
 
     return WorldSpec(name=name, bounds=bounds, walls=walls, start=start, places=places, routes=routes,
                      description=description, source=source)
@@ -157,7 +173,7 @@ def _parse_walls(r: _Reader, walls_data, default_thickness: float) -> np.ndarray
         path = f"{path}.{kind}"
         required = {"segment": ("from", "to"), "polyline": ("points",), "rectangle": ("min", "max")}[kind]
         body = r.mapping(body, path, _WALL_KINDS[kind], required)
-        t = r.number(body.get("thickness", default_thickness), f"{path}.thickness", positive=True)
+        t = r.number(body.get("thickness", default_thickness), f"{path}.thickness", THICKNESS)
         if kind == "segment":
             points = [r.point(body["from"], f"{path}.from"), r.point(body["to"], f"{path}.to")]
         elif kind == "polyline":
@@ -189,17 +205,43 @@ def _parse_place(r: _Reader, value, path: str) -> Place:
     return Place(r.number(v["x"], f"{path}.x"), r.number(v["y"], f"{path}.y"), theta)
 
 
-def _check_start(r: _Reader, start: Place, bounds, walls: np.ndarray) -> None:
+def _first_collision(points: np.ndarray, bounds, walls: np.ndarray):
+    """The index of the first point (N, 2) where the robot's body leaves the bounds or touches a wall, and
+    what it touches (None if the robot fits everywhere)."""
     xmin, ymin, xmax, ymax = bounds
-    if not (xmin + ROBOT_RADIUS <= start.x <= xmax - ROBOT_RADIUS and ymin + ROBOT_RADIUS <= start.y <= ymax - ROBOT_RADIUS):
-        r.fail("start", f"a pose inside the bounds [{xmin}, {xmax}] x [{ymin}, {ymax}] (with the robot's "
-                        f"{ROBOT_RADIUS} m radius)", [start.x, start.y])
-    gaps = point_segment_distance(np.array([start.x]), np.array([start.y]), walls)[0] - walls[:, 4] / 2
-    k = int(np.argmin(gaps))
-    if gaps[k] < ROBOT_RADIUS:
-        r.fail("start", f"a pose where the robot (radius {ROBOT_RADIUS} m) is clear of every wall; it overlaps the "
-                        f"wall from ({walls[k, 0]:g}, {walls[k, 1]:g}) to ({walls[k, 2]:g}, {walls[k, 3]:g})",
-               [start.x, start.y])
+    for i0 in range(0, len(points), 4096):  # chunks keep the (points x walls) distances small
+        chunk = points[i0:i0 + 4096]
+        outside = ~((xmin + ROBOT_RADIUS <= chunk[:, 0]) & (chunk[:, 0] <= xmax - ROBOT_RADIUS) &
+                    (ymin + ROBOT_RADIUS <= chunk[:, 1]) & (chunk[:, 1] <= ymax - ROBOT_RADIUS))
+        gaps = point_segment_distance(chunk[:, 0], chunk[:, 1], walls) - walls[None, :, 4] / 2
+        bad = outside | (gaps.min(axis=1) < ROBOT_RADIUS)
+        if bad.any():
+            i = int(np.argmax(bad))
+            if outside[i]:
+                return i0 + i, f"the bounds [{xmin:g}, {xmax:g}] x [{ymin:g}, {ymax:g}]"
+            w = walls[int(np.argmin(gaps[i]))]
+            return i0 + i, f"the wall from ({w[0]:g}, {w[1]:g}) to ({w[2]:g}, {w[3]:g})"
+    return None
+
+
+def _check_start(r: _Reader, start: Place, bounds, walls: np.ndarray) -> None:
+    collision = _first_collision(np.array([start.xy]), bounds, walls)
+    if collision is not None:
+        r.fail("start", f"a pose where the robot (radius {ROBOT_RADIUS} m) is inside the bounds and clear of every "
+                        f"wall; it overlaps {collision[1]}", [start.x, start.y])
+
+
+def _check_route(r: _Reader, path: str, waypoints: list, bounds, walls: np.ndarray) -> None:
+    """A route is driven straight from waypoint to waypoint: the robot must fit along every leg."""
+    for i, (a, b) in enumerate(zip(waypoints[:-1], waypoints[1:])):
+        length = math.hypot(b[0] - a[0], b[1] - a[1])
+        t = np.linspace(0.0, 1.0, max(2, int(math.ceil(length / ROUTE_CHECK_STEP)) + 1))
+        points = np.column_stack([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])
+        collision = _first_collision(points, bounds, walls)
+        if collision is not None:
+            x, y = points[collision[0]]
+            r.fail(f"{path}[{i + 1}]", f"a waypoint the robot (radius {ROBOT_RADIUS} m) can drive to straight from "
+                   f"the one before; at ({x:.2f}, {y:.2f}) it would overlap {collision[1]}", list(b))
 
 
 def _waypoint(r: _Reader, value, path: str, places: dict[str, Place]) -> tuple[float, float]:
