@@ -69,8 +69,9 @@ def map_accuracy(probabilities: np.ndarray, truth_grid: np.ndarray, *, geometry:
     when p > 0.5. ``truth_grid`` holds ``unknown`` / free / ``occupied`` labels on the
     same grid. With ``transform`` (R, t), e.g. the :func:`trajectory_alignment` of the
     path that built the map, the map is first registered onto the truth (needs
-    ``geometry``), as trajectories are aligned for the ATE. NaN when no cell is known
-    to both.
+    ``geometry``), as trajectories are aligned for the ATE. 0.0 when no cell is known to
+    both (a map that holds nothing of the truth gets nothing right; a finite value keeps
+    ``info`` and the means over episodes defined).
     """
     p = np.asarray(probabilities)
     if p.shape != truth_grid.shape:
@@ -81,5 +82,5 @@ def map_accuracy(probabilities: np.ndarray, truth_grid: np.ndarray, *, geometry:
         truth_grid = labels_in_map_frame(truth_grid, geometry, transform, unknown)
     known = observed_cells(p, observed_tol) & (truth_grid != unknown)
     if not known.any():
-        return float("nan")
+        return 0.0
     return float(np.mean((p[known] > 0.5) == (truth_grid[known] == occupied)))

@@ -1,5 +1,6 @@
 """The Gymnasium environments: API conformance, seeding, vectorisation, options, behaviour."""
 
+import copy
 import multiprocessing as mp
 import os
 import pickle
@@ -139,14 +140,19 @@ def test_same_seed_same_episode_across_processes():
     assert_same(remote, run("emmi_gym/ExploreVelocity-v0", 3, 20, **SMALL))
 
 
-def test_pickled_env_continues_identically():
-    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL).unwrapped
+@pytest.mark.parametrize("env_id", IDS)
+def test_pickled_and_copied_envs_continue_identically(env_id):
+    env = gym.make(env_id, **SMALL, max_decisions=3).unwrapped
     env.reset(seed=2)
-    clone = pickle.loads(pickle.dumps(env))
-    for _ in range(15):
-        a = env.step(np.array([0.8, 0.3], dtype=np.float32))
-        b = clone.step(np.array([0.8, 0.3], dtype=np.float32))
-        assert_same(a, b)
+    waypoint = env.config.action_mode == "waypoint"
+    if waypoint:
+        env.step(frontier_action(env))  # a plan is made and kept (the cost map)
+    clones = [pickle.loads(pickle.dumps(env)), copy.deepcopy(env)]
+    for _ in range(2 if waypoint else 15):
+        action = frontier_action(env) if waypoint else np.array([0.8, 0.3], dtype=np.float32)
+        a = env.step(action)
+        for clone in clones:
+            assert_same(a, clone.step(action))
 
 
 def test_async_vector_env_and_sb3_subproc_spawn():
@@ -341,3 +347,39 @@ def test_loop_closing_target_is_reached_without_pushing_into_walls():
     _, _, _, _, info = env.step(slot)
     assert np.hypot(*(core.estimated_pose[:2] - start.xy)) < 0.5
     assert info["collisions"] <= 5 and core._blocked == []
+
+
+# ------------------------------------------------------------------ bounded work on bad input
+
+
+def test_an_undrivable_route_ends_reset_with_an_error_not_a_hang():
+    import dataclasses
+
+    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL).unwrapped
+    world = env._fixed_world
+    # a route the loader would refuse (it ends inside the outer wall), given to the env directly
+    env._fixed_world = dataclasses.replace(world, routes={"to_decision": [world.start.xy, (world.start.x, -5.0)]})
+    with pytest.raises(RuntimeError, match=r"route 'to_decision' \(6\.0 m\) was not driven within 900 simulator steps; the robot is stuck at"):
+        env.reset(seed=0)
+
+
+def test_obstruction_checks_look_only_as_far_as_the_laser():
+    from emmi_gym.env.planner import path_obstructed
+    from emmi_gym.grid import GridGeometry
+
+    geometry = GridGeometry(0.1, 0.0, 0.0, 20, 200)
+    expected = np.full(geometry.shape, 0.2)
+    expected[:, 150] = 0.9  # a wall across the corridor, 15 m ahead
+    path = [(0.5, 1.0), (19.5, 1.0), (19.5, 1e6)]  # running off 1000 km, as a lost pose estimate can
+    assert path_obstructed(expected, geometry, path, 0.2)
+    assert not path_obstructed(expected, geometry, path, 0.2, horizon=8.0)
+    assert path_obstructed(expected, geometry, path, 0.2, skip=8.0, horizon=8.0)
+
+
+def test_map_accuracy_is_defined_when_nothing_is_known_to_both():
+    from emmi_gym.evaluation import map_accuracy
+
+    assert map_accuracy(np.full((4, 4), 0.5), np.ones((4, 4), dtype=np.int8)) == 0.0
+    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL, laser={"max_range": 0.3}).unwrapped
+    _, info = env.reset(seed=1)
+    assert np.isfinite(info["map_accuracy"])

@@ -41,6 +41,8 @@ BLOCKED_STEPS = 15
 #: swing between two routes for ever (move_base's oscillation timeout).
 NO_PROGRESS_STEPS = 300
 PROGRESS_M = 0.5
+#: Simulator steps (60 s) added to the time a route takes at full speed, in the bound on driving it.
+ROUTE_SLACK_STEPS = 600
 #: Scan echoes closer than this (m) are obstacles for replanning, with this occupancy probability.
 SCAN_LAYER_RANGE = 3.0
 SCAN_LAYER_P = 0.9
@@ -121,17 +123,30 @@ class EmmiEnv(gym.Env):
         if start_at == "decision":
             if "to_decision" not in world.routes:
                 raise ValueError(f"start_at='decision' needs a 'to_decision' route in world '{world.name}'")
-            follower = WaypointFollower(world.route("to_decision"), self.robot_config.max_speed,
-                                        self.robot_config.max_turn_rate)
-            while not follower.done:
-                v, omega = follower.command(self.sim.true_pose)
-                if not follower.done:
-                    self._sim_step(v, omega)
+            self._drive_route(world, "to_decision")
         self.sim_steps = self.collisions = 0
         self._refresh()
         self._snapshot = self._take_snapshot()
         return self._observation(), self._info({k: 0.0 for k in ("emmi", "pose_entropy", "joint_entropy",
                                                                   "coverage", "time", "collision")})
+
+    def _drive_route(self, world, name: str) -> None:
+        """Drive a route of the world with the true pose (the filter running), within a bound of time:
+        three times what its length takes at full speed, plus a minute (routes are checked against
+        the walls when the world loads; the bound catches what the check cannot foresee)."""
+        route = world.route(name)
+        follower = WaypointFollower(route, self.robot_config.max_speed, self.robot_config.max_turn_rate)
+        length = follower.remaining_length(self.sim.true_pose)
+        budget = int(3 * length / (self.robot_config.max_speed * self.robot_config.control_period)) + ROUTE_SLACK_STEPS
+        for _ in range(budget):
+            v, omega = follower.command(self.sim.true_pose)
+            if follower.done:
+                return
+            self._sim_step(v, omega)
+        x, y, _ = self.sim.true_pose
+        raise RuntimeError(f"world '{world.name}': the route '{name}' ({length:.1f} m) was not driven within "
+                           f"{budget} simulator steps; the robot is stuck at ({x:.2f}, {y:.2f}) before waypoint "
+                           f"{follower.index} {follower.remaining[0]}")
 
     def _set_world(self, world) -> None:
         self.world = world
@@ -251,7 +266,7 @@ class EmmiEnv(gym.Env):
         expected = self._with_scan_layer(self.slam.expected_map(), pose)
         radius = self.robot_config.radius
         if not path_obstructed(expected, self.geometry, [tuple(pose[:2])] + follower.remaining, radius,
-                               skip=radius + KEEP_OUT_MARGIN):
+                               skip=radius + KEEP_OUT_MARGIN, horizon=self.laser_config.max_range):
             return follower
         costs = travel_costs(expected, self.geometry, pose[:2], radius, goal_xy=(target.x, target.y))
         if not np.isfinite(costs.cost_to(target.x, target.y)):

@@ -3,6 +3,8 @@ check that tells the robot to replan when the map it learns on the way blocks it
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,11 +24,15 @@ KEEP_OUT_MARGIN = 0.05     # m beyond the robot's radius that a path must keep f
 
 @dataclass
 class CostMap:
-    """Travel costs from the robot over an expected map; ``cumulative`` is inf where unreachable."""
+    """Travel costs from the robot over an expected map; ``cumulative`` is inf where unreachable.
+
+    ``traceback`` and ``offsets`` are scikit-image's MCP result (for each cell, the index of the
+    step that reached it; -1 at the start), kept as plain arrays so the env can be pickled."""
 
     geometry: GridGeometry
     cumulative: np.ndarray
-    _mcp: MCP_Geometric
+    traceback: np.ndarray
+    offsets: np.ndarray
 
     def cost_to(self, x: float, y: float) -> float:
         row, col = self.geometry.cell_of(x, y)
@@ -36,14 +42,24 @@ class CostMap:
 
     def path_to(self, x: float, y: float, spacing: float = 0.5) -> list[tuple[float, float]]:
         """Waypoints (x, y) every ``spacing`` metres along the cheapest path, ending at the target cell."""
-        row, col = self.geometry.cell_of(x, y)
-        cells = np.array(self._mcp.traceback((int(row), int(col))))
+        cells = np.array(self._cells_to(*_clipped_cell(self.geometry, (x, y))))
         xs, ys = self.geometry.centre_of(cells[:, 0], cells[:, 1])
         step = max(1, int(round(spacing / self.geometry.resolution)))
         keep = list(range(step, len(cells), step))
         if not keep or keep[-1] != len(cells) - 1:
             keep.append(len(cells) - 1)
         return [(float(xs[k]), float(ys[k])) for k in keep]
+
+
+    def _cells_to(self, row: int, col: int) -> list[tuple[int, int]]:
+        """The cells from the start to (row, col), walking the traceback back (``MCP.traceback``'s walk)."""
+        if not np.isfinite(self.cumulative[row, col]):
+            raise ValueError(f"no path to cell ({row}, {col}): it is unreachable")
+        cells = [(row, col)]
+        while (step := self.traceback[row, col]) >= 0:
+            row, col = row - int(self.offsets[step, 0]), col - int(self.offsets[step, 1])
+            cells.append((row, col))
+        return cells[::-1]
 
 
 def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, robot_radius: float,
@@ -74,8 +90,8 @@ def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, rob
     costs[row, col] = max(float(costs[row, col]), 1.0) if np.isfinite(costs[row, col]) else 5.0
     mcp = MCP_Geometric(costs)
     ends = None if goal_xy is None else [_clipped_cell(geometry, goal_xy)]
-    cumulative, _ = mcp.find_costs([(row, col)], ends)
-    return CostMap(geometry, cumulative, mcp)
+    cumulative, traceback = mcp.find_costs([(row, col)], ends)
+    return CostMap(geometry, cumulative, np.asarray(traceback), np.asarray(mcp.offsets))
 
 
 def _clipped_cell(geometry: GridGeometry, xy) -> tuple[int, int]:
@@ -84,16 +100,18 @@ def _clipped_cell(geometry: GridGeometry, xy) -> tuple[int, int]:
 
 
 def path_obstructed(expected_map: np.ndarray, geometry: GridGeometry, polyline, robot_radius: float,
-                    skip: float = 0.0) -> bool:
+                    skip: float = 0.0, horizon: float = math.inf) -> bool:
     """Whether an obstacle (p > ``BLOCKING_P``) now lies closer than the planner's keep-out distance
-    to the polyline of (x, y) points, leaving out its first ``skip`` metres (where the robot is)."""
+    to the polyline of (x, y) points, between ``skip`` metres along it (where the robot is) and
+    ``skip + horizon`` (what the sensor can have changed, as a local costmap's window: the cost then
+    does not grow with the path's length, which a wildly wrong pose estimate can make kilometres)."""
     points = np.asarray(polyline, dtype=np.float64)
     if len(points) < 2:
         return False
     res = geometry.resolution
     lengths = np.hypot(*np.diff(points, axis=0).T)
     along = np.concatenate([[0.0], np.cumsum(lengths)])
-    s = np.arange(skip, along[-1], res / 2)
+    s = np.arange(skip, min(along[-1], skip + horizon), res / 2)
     if s.size == 0:
         return False
     rows, cols = geometry.cell_of(np.interp(s, along, points[:, 0]), np.interp(s, along, points[:, 1]))
