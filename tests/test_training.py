@@ -39,7 +39,8 @@ def test_each_algorithm_trains_saves_resumes_and_evaluates(algorithm, tmp_path):
     env_extra, hyper = ALGORITHMS[algorithm]
     first = train(parse_agent_config(config_dict(algorithm, env_extra, hyper)), tmp_path, progress=False)
     assert first.model_path.exists() and first.timesteps >= 96 and not first.interrupted
-    assert (tmp_path / "config.yaml").exists() and latest_checkpoint(tmp_path).name == "model_96_steps.zip"
+    assert (tmp_path / "config.yaml").exists() and (tmp_path / "checkpoints" / "model_96_steps.zip").exists()
+    assert latest_checkpoint(tmp_path) == tmp_path / "model.zip"  # a finished run resumes from its final model
     with open(tmp_path / "eval_ground_truth.csv") as f:
         curve = list(csv.DictReader(f))
     assert [int(r["timesteps"]) for r in curve] == [64] and set(GROUND_TRUTH) <= set(curve[0])
@@ -71,23 +72,73 @@ def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
 
 
 def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
-    from stable_baselines3.common import callbacks
+    from emmi_gym.training.train import AtomicCheckpointCallback
 
-    original = callbacks.CheckpointCallback._on_step
+    original = AtomicCheckpointCallback._on_step
 
     def interrupt(self):
         if self.num_timesteps >= 40:
             raise KeyboardInterrupt
         return original(self)
 
-    monkeypatch.setattr(callbacks.CheckpointCallback, "_on_step", interrupt)
+    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", interrupt)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
     stopped = train(config, tmp_path, progress=False)
     assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path)
     assert not (tmp_path / "model.zip").exists()
-    monkeypatch.setattr(callbacks.CheckpointCallback, "_on_step", original)
+    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", original)
     finished = train(config, tmp_path, resume=True, progress=False)
     assert finished.timesteps >= 96 and (tmp_path / "model.zip").exists()
+
+
+@pytest.mark.parametrize("whole_group", [False, True], ids=["kill -INT main process", "Ctrl-C (process group)"])
+def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    import zipfile
+
+    data = config_dict("PPO", hyper={"n_steps": 16, "batch_size": 32, "n_epochs": 1}, timesteps=100_000,
+                       n_envs=2, vec_env="subproc", checkpoint_freq=32)
+    (tmp_path / "agent.yaml").write_text(yaml.safe_dump(data))
+    run = tmp_path / "run"
+    process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", str(tmp_path / "agent.yaml"), "--out",
+                                str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    try:
+        waited = 0.0
+        while not list((run / "checkpoints").glob("model_*_steps.zip")) and process.poll() is None and waited < 300:
+            time.sleep(0.5)
+            waited += 0.5
+        assert process.poll() is None, process.communicate()[1][-2000:]
+        (os.killpg if whole_group else os.kill)(process.pid, signal.SIGINT)
+        out, err = process.communicate(timeout=120)  # a deadlock fails here rather than hanging the suite
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 130, err[-2000:]
+    assert "interrupted at" in out and "continue with --resume" in out and "Traceback" not in err
+    newest = latest_checkpoint(run)
+    with zipfile.ZipFile(newest) as archive:
+        assert archive.testzip() is None
+
+
+def test_resume_skips_a_checkpoint_cut_short_by_a_kill(tmp_path):
+    config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                            timesteps=64, checkpoint_freq=32))
+    train(config, tmp_path, progress=False)
+    (tmp_path / "model.zip").unlink()  # as if killed before the end
+    newest = tmp_path / "checkpoints" / "model_64_steps.zip"
+    newest.write_bytes(newest.read_bytes()[:1000])  # a save cut short (as SB3's in-place saves could be)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint .*model_64_steps.zip"):
+        assert latest_checkpoint(tmp_path) == tmp_path / "checkpoints" / "model_32_steps.zip"
+    more = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                          timesteps=96, checkpoint_freq=32))
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
+        resumed = train(more, tmp_path, resume=True, progress=False)
+    assert resumed.timesteps >= 96 and not list(tmp_path.rglob("*.tmp.*"))
 
 
 def test_shipped_configurations_load_and_variants_differ_only_in_reward():

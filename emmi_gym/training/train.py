@@ -11,14 +11,22 @@ algorithms), ``eval/`` (SB3's ``evaluations.npz`` and the best model),
 from __future__ import annotations
 
 import copy
+import os
 import re
+import signal
+import threading
 import time
+import warnings
+import zipfile
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
 import gymnasium as gym
 import yaml
+from stable_baselines3.common.callbacks import CheckpointCallback
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument
@@ -38,29 +46,107 @@ class TrainResult:
     interrupted: bool = False
 
 
-def make_env(env_id: str, kwargs: dict, render_mode: str | None = None) -> gym.Env:
+def make_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_worker: bool = False) -> gym.Env:
     """``gym.make`` of an emmi_gym id, wrapped to report the episode's loop order (:class:`LoopOrderInfo`);
-    importable by reference, so spawned workers can build it."""
+    importable by reference, so spawned workers can build it. In a ``vec_worker`` (a subprocess of
+    vectorised envs) Ctrl-C is ignored: the main process handles it and closes the workers."""
     import emmi_gym  # noqa: F401  (registers the ids in a fresh worker process)
 
+    if vec_worker:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     return LoopOrderInfo(gym.make(env_id, render_mode=render_mode, **kwargs))
 
 
 def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str):
     """SB3 vectorised envs (Monitor-wrapped): subprocesses when asked and there is more than one env."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    cls = SubprocVecEnv if vec_env == "subproc" and n_envs > 1 else DummyVecEnv
-    return sb3_make_vec_env(partial(make_env, config.env_id, config.env_kwargs), n_envs=n_envs, seed=seed,
-                            vec_env_cls=cls)
+    subprocesses = vec_env == "subproc" and n_envs > 1
+    return sb3_make_vec_env(partial(make_env, config.env_id, config.env_kwargs, vec_worker=subprocesses),
+                            n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if subprocesses else DummyVecEnv)
+
+
+@contextmanager
+def interrupts_deferred():
+    """Hold a Ctrl-C (SIGINT) that arrives inside the block until it ends, then raise it: an
+    interrupted ``torch.save`` leaves a broken archive and raises its own error instead."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+    previous = signal.signal(signal.SIGINT, lambda *_: received.append(True))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if received:
+        raise KeyboardInterrupt
+
+
+def save_atomically(save, path: Path) -> Path:
+    """Call ``save(tmp)`` and rename ``tmp`` to ``path``: a run killed mid-save leaves the previous
+    files whole and at most a ``*.tmp.*`` file (SB3's own saves write in place)."""
+    tmp = path.with_name(f"{path.stem}.tmp{path.suffix}")
+    save(tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def _is_whole_zip(path: Path) -> bool:
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return archive.testzip() is None
+    except (zipfile.BadZipFile, OSError):
+        return False
 
 
 def latest_checkpoint(run_dir: Path) -> Path | None:
-    """The checkpoint of a run folder with the most steps, if any."""
-    found = [(int(m.group(1)), p) for p in (run_dir / "checkpoints").glob("model_*_steps.zip")
-             if (m := _CHECKPOINT.search(p.name))]
-    return max(found)[1] if found else None
+    """The checkpoint of a run folder to continue from: the final ``model.zip`` if the run finished, else
+    the checkpoint with the most steps that is a whole archive (one cut short by a kill is skipped,
+    with a warning)."""
+    if (run_dir / "model.zip").exists() and _is_whole_zip(run_dir / "model.zip"):
+        return run_dir / "model.zip"
+    found = sorted(((int(m.group(1)), p) for p in (run_dir / "checkpoints").glob("model_*_steps.zip")
+                    if (m := _CHECKPOINT.search(p.name))), reverse=True)
+    for _, path in found:
+        if _is_whole_zip(path):
+            return path
+        warnings.warn(f"skipping the damaged checkpoint {path} (not a whole zip archive)", stacklevel=2)
+    return None
+
+
+class AtomicCheckpointCallback(CheckpointCallback):
+    """SB3's checkpoints (same names and schedule), each written to a temporary file and renamed."""
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.save_freq == 0:
+            with interrupts_deferred():
+                save_atomically(self.model.save, Path(self._checkpoint_path(extension="zip")))
+                if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
+                    save_atomically(self.model.save_replay_buffer,
+                                    Path(self._checkpoint_path("replay_buffer_", extension="pkl")))
+        return True
+
+
+def close_vec_env(env, timeout: float = 3.0) -> None:
+    """Close vectorised envs even after an interrupt left a subprocess exchange half done (SB3's
+    ``close`` would wait for replies already read, for ever): ask each worker to close, wait up to
+    ``timeout`` seconds, then terminate those still running."""
+    if not isinstance(env, SubprocVecEnv) or env.closed:
+        env.close()
+        return
+    for remote in env.remotes:
+        try:
+            remote.send(("close", None))
+        except OSError:
+            pass
+    deadline = time.monotonic() + timeout
+    for process in env.processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.terminate()
+            process.join()
+    env.closed = True
 
 
 def load_run_config(model_path) -> AgentConfig:
@@ -77,7 +163,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
           verbose: int = 0) -> TrainResult:
     """Train ``config`` into ``run_dir`` (see the module docstring); with ``resume``, continue from the
     folder's latest checkpoint up to ``config.total_timesteps``."""
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
+    from stable_baselines3.common.callbacks import CallbackList
 
     run_dir = Path(run_dir)
     checkpoints = run_dir / "checkpoints"
@@ -110,7 +196,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
         log_path=str(run_dir / "eval"), best_model_save_path=str(run_dir / "eval"), deterministic=True,
         verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv")
-    checkpointing = CheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoints), name_prefix="model",
+    checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoints), name_prefix="model",
                                        save_replay_buffer=config.algorithm in OFF_POLICY)
     callbacks = [checkpointing, evaluation]
     if config.discount_unit is not None:
@@ -121,16 +207,20 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     try:
         model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
                     reset_num_timesteps=start is None, tb_log_name="run")
-        model_path = run_dir / "model.zip"
-        model.save(model_path)
-    except KeyboardInterrupt:  # Ctrl-C: keep what was learnt, as a checkpoint --resume continues from
+        with interrupts_deferred():
+            model_path = save_atomically(model.save, run_dir / "model.zip")
+    except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
         interrupted = True
-        model_path = checkpoints / f"model_{model.num_timesteps}_steps.zip"
-        checkpoints.mkdir(parents=True, exist_ok=True)
-        model.save(model_path)
-        if config.algorithm in OFF_POLICY:
-            model.save_replay_buffer(checkpoints / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short
+        try:
+            checkpoints.mkdir(parents=True, exist_ok=True)
+            model_path = save_atomically(model.save, checkpoints / f"model_{model.num_timesteps}_steps.zip")
+            if config.algorithm in OFF_POLICY:
+                save_atomically(model.save_replay_buffer,
+                                checkpoints / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
+        finally:
+            signal.signal(signal.SIGINT, previous)
     finally:
-        env.close()
-        eval_env.close()
+        close_vec_env(env)
+        close_vec_env(eval_env)
     return TrainResult(run_dir, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
