@@ -73,6 +73,7 @@ class CarmenLog:
     records: list = field(default_factory=list)
     skipped_bad_lines: dict[str, int] = field(default_factory=dict)
     ignored_messages: dict[str, int] = field(default_factory=dict)
+    scans_without_echo: int = 0  # laser lines whose every range is 0 (kept: the motion still counts)
 
     def of_type(self, cls) -> list:
         return [r for r in self.records if isinstance(r, cls)]
@@ -84,6 +85,8 @@ class CarmenLog:
             lines.append("skipped malformed lines: " + _counts(self.skipped_bad_lines))
         if self.ignored_messages:
             lines.append("ignored messages: " + _counts(self.ignored_messages))
+        if self.scans_without_echo:
+            lines.append(f"{self.scans_without_echo} scans have no echo (every range 0): they add nothing to the map")
         return lines
 
 
@@ -98,6 +101,9 @@ LASER_OFFSET_PARAMS = {"robot_frontlaser_offset": 0, "robot_frontlaser_side_offs
 
 # ----------------------------------------------------------------------------- reading
 
+#: The most readings a laser line may hold (real scanners have at most a few thousand beams).
+MAX_READINGS = 100_000
+
 
 class _Fields:
     """Cursor over the whitespace-separated fields of one line."""
@@ -105,7 +111,8 @@ class _Fields:
     def __init__(self, tokens: list[str]):
         self.tokens, self.pos = tokens, 1
 
-    def take(self, what: str) -> float:
+    def take(self, what: str, minimum: float = -math.inf, above: bool = False) -> float:
+        """The next field as a finite number >= ``minimum`` (> with ``above``)."""
         if self.pos >= len(self.tokens):
             raise ValueError(f"line ends before {what}")
         token = self.tokens[self.pos]
@@ -113,19 +120,34 @@ class _Fields:
         try:
             value = float(token)
         except ValueError:
-            raise ValueError(f"{what}: expected a number, got {token!r}") from None
-        if math.isnan(value):
-            raise ValueError(f"{what}: NaN is not a valid value")
+            raise ValueError(f"{what}: expected a number, got {token[:40]!r}") from None
+        if not math.isfinite(value):
+            raise ValueError(f"{what}: expected a finite number, got {token[:40]!r}")
+        if value < minimum or (above and value == minimum):
+            raise ValueError(f"{what}: expected a number {'>' if above else '>='} {minimum:g}, got {token[:40]!r}")
         return value
 
-    def count(self, what: str) -> int:
-        value = self.take(what)
-        if value < 0 or value != int(value):
-            raise ValueError(f"{what}: expected a count (integer >= 0), got {value!r}")
+    def count(self, what: str, maximum: int = MAX_READINGS) -> int:
+        """A count of the fields that follow: a whole number the rest of the line can hold."""
+        value = self.take(what, 0.0)
+        if value != int(value) or value > maximum:
+            raise ValueError(f"{what}: expected a count (an integer in [0, {maximum}]), got {value!r}")
+        if value > len(self.tokens) - self.pos:
+            raise ValueError(f"{what} is {int(value)}, but the line has only {len(self.tokens) - self.pos} fields "
+                             "after it")
         return int(value)
 
-    def many(self, n: int, what: str) -> np.ndarray:
-        return np.array([self.take(f"{what}[{i}]") for i in range(n)], dtype=np.float64)
+    def numbers_before_host(self) -> int | None:
+        """How many fields from here on come before the first that is not a number (the hostname)."""
+        for i in range(self.pos, len(self.tokens)):
+            try:
+                float(self.tokens[i])
+            except ValueError:
+                return i - self.pos
+        return None
+
+    def many(self, n: int, what: str, minimum: float = -math.inf) -> np.ndarray:
+        return np.array([self.take(f"{what}[{i}]", minimum) for i in range(n)], dtype=np.float64)
 
     def pose(self, what: str) -> np.ndarray:
         return self.many(3, what)
@@ -159,7 +181,11 @@ def _parse_odom(f: _Fields) -> OdometryRecord:
 
 def _parse_flaser(f: _Fields, fov: float) -> LaserRecord:
     n = f.count("num_readings")
-    ranges = f.many(n, "range")
+    numbers = f.numbers_before_host()
+    if numbers is not None and numbers != n + 7:  # the ranges, two poses, the timestamp, then the hostname
+        raise ValueError(f"num_readings is {n}, but the line has {numbers - 7} ranges before its two poses, "
+                         "timestamp and hostname")
+    ranges = f.many(n, "range", 0.0)
     f.pose("laser pose")
     odom = f.pose("odometry pose")
     # FLASER lines do not say their field of view: ``fov``, centred, beams evenly spaced
@@ -169,11 +195,12 @@ def _parse_flaser(f: _Fields, fov: float) -> LaserRecord:
 
 def _parse_laser_header(f: _Fields):
     f.take("laser_type")
-    start, _fov, resolution, max_range = f.take("start_angle"), f.take("field_of_view"), \
-        f.take("angular_resolution"), f.take("maximum_range")
+    start, _fov = f.take("start_angle"), f.take("field_of_view")
+    # beams must sweep counter-clockwise, and a maximum range must be one
+    resolution, max_range = f.take("angular_resolution", 0.0, above=True), f.take("maximum_range", 0.0, above=True)
     f.take("accuracy")
     f.take("remission_mode")
-    ranges = f.many(f.count("num_readings"), "range")
+    ranges = f.many(f.count("num_readings"), "range", 0.0)
     f.many(f.count("num_remissions"), "remission")
     return ranges, start, resolution, max_range
 
@@ -249,15 +276,19 @@ def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: 
             continue
         kind = tokens[0]
         try:
+            record = None
             if kind == "FLASER":
                 record = _parse_flaser(_Fields(tokens), flaser_fov)
                 if np.any(offset):
                     record = replace(record, laser_offset=offset.copy())
-                log.records.append(record)
             elif kind in _PARSERS:
-                log.records.append(_PARSERS[kind](_Fields(tokens)))
+                record = _PARSERS[kind](_Fields(tokens))
             elif not (kind == "PARAM" and _parse_param(_Fields(tokens), offset)):
                 log.ignored_messages[kind] = log.ignored_messages.get(kind, 0) + 1
+            if record is not None:
+                log.records.append(record)
+                if isinstance(record, LaserRecord) and not np.any(record.ranges > 0):
+                    log.scans_without_echo += 1
         except ValueError as exc:
             if not skip_bad_lines:
                 raise CarmenFormatError(source, number, f"{kind[:40]}: {exc}") from None
@@ -265,18 +296,33 @@ def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: 
     return log
 
 
-def read_log(path, *, skip_bad_lines: bool = False, flaser_fov: float = math.pi) -> CarmenLog:
-    """Read a CARMEN log file, plain or gzipped (see :func:`parse_lines`)."""
+def read_log(path, *, skip_bad_lines: bool = False, flaser_fov: float = math.pi, progress: bool = False) -> CarmenLog:
+    """Read a CARMEN log file, plain or gzipped (see :func:`parse_lines`); ``progress`` shows a bar of
+    the bytes read (a 250 MB log takes a while)."""
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{path}: is a folder, expected a CARMEN log file")
     with path.open("rb") as raw:
         gzipped = raw.read(2) == b"\x1f\x8b"
-    with (gzip.open(path, "rb") if gzipped else path.open("rb")) as fh:
+        raw.seek(0)
+        fh = gzip.GzipFile(fileobj=raw) if gzipped else raw
+        lines = _with_progress(fh, raw, path) if progress else fh
         try:
-            return parse_lines(fh, str(path), skip_bad_lines=skip_bad_lines, flaser_fov=flaser_fov)
+            return parse_lines(lines, str(path), skip_bad_lines=skip_bad_lines, flaser_fov=flaser_fov)
         except (OSError, EOFError) as exc:  # a truncated or corrupt gzip stream
             raise ValueError(f"{path}: cannot be read as gzip ({exc})") from None
+
+
+def _with_progress(lines, raw, path: Path, every: int = 2000):
+    """The lines, with a tqdm bar of the bytes of the file read so far (compressed ones for gzip)."""
+    from tqdm.auto import tqdm
+
+    with tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc=f"reading {path.name}") as bar:
+        for number, line in enumerate(lines):
+            if number % every == 0:
+                bar.update(raw.tell() - bar.n)
+            yield line
+        bar.update(raw.tell() - bar.n)
 
 
 # ----------------------------------------------------------------------------- writing

@@ -7,6 +7,10 @@ import sys
 from pathlib import Path
 
 
+DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMMI reward: run the paper's A/B "
+               "experiment, train and evaluate agents, benchmark rewards, record and replay CARMEN logs.")
+
+
 def _cmd_metrics(args: argparse.Namespace) -> int:
     from .examples import fig5_contrast
 
@@ -52,7 +56,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from .slam import RBPFConfig
     from .slam.replay import replay, write_outputs
 
-    log = read_log(args.log, skip_bad_lines=args.skip_bad_lines, flaser_fov=math.radians(args.flaser_fov))
+    log = read_log(args.log, skip_bad_lines=args.skip_bad_lines, flaser_fov=math.radians(args.flaser_fov),
+                   progress=not args.quiet)
     options = dict(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,
                    matching_range=args.matching_range)
     config = RBPFConfig(**options) if args.preset is None else RBPFConfig.preset(args.preset, **options)
@@ -114,12 +119,19 @@ def _cmd_ab(args: argparse.Namespace) -> int:
     return 0
 
 
+def _torch_threads_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--torch-threads", type=int, default=None, metavar="N",
+                        help="torch threads of the learner (default 1: small networks run fastest on one, and the "
+                             "env workers need the other cores)")
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .training.config import load_agent_config
-    from .training.train import train
+    from .training.train import set_torch_threads, train
 
+    set_torch_threads(args.torch_threads)
     config = load_agent_config(args.config)
     if args.timesteps is not None:
         if args.timesteps < 1:
@@ -143,7 +155,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from .training.episodes import summarise
     from .training.evaluate import evaluate_model, format_table
+    from .training.train import set_torch_threads
 
+    set_torch_threads(args.torch_threads)
     if args.episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
     rows = evaluate_model(args.model, args.episodes, args.seed, args.video)
@@ -205,7 +219,7 @@ def _add_ab_options(parser: argparse.ArgumentParser, seeds: int, particles: int,
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="emmi-gym", description=__doc__)
+    parser = argparse.ArgumentParser(prog="emmi-gym", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="the paper's loop-closure experiment in small: A vs B on 3 seeds, "
                                        "figures and summary in well under a minute")
@@ -221,6 +235,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--out", default=None, help="run folder (default runs/<config>_seed<seed>)")
     tr.add_argument("--resume", action="store_true", help="continue from the run folder's latest checkpoint")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
+    _torch_threads_option(tr)
     tr.set_defaults(func=_cmd_train)
 
     ev = sub.add_parser("evaluate", help="run a trained model on held-out episodes: return and ground-truth metrics")
@@ -228,6 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--episodes", type=int, default=10)
     ev.add_argument("--seed", type=int, default=200_000, help="first episode seed (default 200000: held out)")
     ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
+    _torch_threads_option(ev)
     ev.set_defaults(func=_cmd_evaluate)
 
     bench = sub.add_parser("benchmark", help="train agents per reward variant and compare them, and the scripted "

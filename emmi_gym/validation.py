@@ -15,6 +15,9 @@ from dataclasses import dataclass, field, fields
 
 from .errors import FieldError, excerpt
 
+#: The longest laser range anything accepts, metres (real 2D scanners reach 80 m at most).
+MAX_LASER_RANGE = 100.0
+
 
 class OptionError(FieldError):
     """An option (``gym.make`` keyword, nested option dict, configuration field) is invalid."""
@@ -227,5 +230,5 @@ def _join(label: str, name: str) -> str:
     return f"{label}.{name}" if label else name
 
 
-__all__ = ["Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Real", "Text",
+__all__ = ["MAX_LASER_RANGE", "Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Real", "Text",
            "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "option"]

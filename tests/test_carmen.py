@@ -125,6 +125,46 @@ def test_glued_nul_and_binary_lines_are_errors_with_their_line_number():
     assert log.report() == ["skipped malformed lines: 1 ODOM, 1 unreadable"]
 
 
+RAW = "RAWLASER1 0 -1.5708 3.1416 {res} {max_range} 0.01 0 3 {ranges} 0 13.0 host 13.0"
+
+
+@pytest.mark.parametrize("line, expected", [
+    (RAW.format(res=0.017, max_range="inf", ranges="1 1 1"), r"maximum_range: expected a finite number, got 'inf'"),
+    (RAW.format(res=0.017, max_range=0, ranges="1 1 1"), r"maximum_range: expected a number > 0, got '0'"),
+    (RAW.format(res=-0.017, max_range=8, ranges="1 1 1"), r"angular_resolution: expected a number > 0"),
+    (RAW.format(res=0.017, max_range=8, ranges="1 -1 1"), r"range\[1\]: expected a number >= 0, got '-1'"),
+    (f"FLASER 180 {SCAN} 0 0 0 1e999 0 0 1.0 host 1.0", r"odometry pose\[0\]: expected a finite number"),
+    ("FLASER 5 1 1 1 0 0 0 0 0 0 1.0 emmi-gym 1.0", r"num_readings is 5, but the line has 3 ranges before its two poses"),
+    ("FLASER 1e9 1 1", r"num_readings: expected a count \(an integer in \[0, 100000\]\)"),
+])
+def test_bad_laser_fields_name_line_and_field(line, expected):
+    with pytest.raises(carmen.CarmenFormatError, match=rf"<log>:2: \w+: {expected}"):
+        carmen.parse_lines(["# a header line", line])
+
+
+def test_scans_without_echo_are_reported_and_parsing_shows_progress(tmp_path, capsys):
+    zeros = " ".join(["0"] * 180)
+    log = carmen.parse_lines([f"FLASER 180 {zeros} 0 0 0 0 0 0 1.0 host 1.0", f"FLASER 180 {SCAN} 0 0 0 0 0 0 2.0 h 2"])
+    assert log.report() == ["1 scans have no echo (every range 0): they add nothing to the map"]
+    path = tmp_path / "run.log"
+    path.write_text(f"FLASER 180 {SCAN} 0 0 0 0 0 0 2.0 h 2\n" * 50)
+    assert len(carmen.read_log(path, progress=True).records) == 50
+    assert "reading run.log" in capsys.readouterr().err
+
+
+def test_replay_of_a_straight_drive_and_of_a_pose_far_away():
+    from emmi_gym.slam import RBPFConfig
+    from emmi_gym.slam.occupancy import MapTooLarge
+    from emmi_gym.slam.replay import replay
+
+    straight = [f"FLASER 180 {SCAN} 0 0 0 {0.5 * k} 0 0 {k}.0 h {k}.0" for k in range(5)]
+    result = replay(carmen.parse_lines(straight), RBPFConfig(particles=2), max_range=8.0)
+    assert len(result.rows) >= 2
+    far = straight[:2] + [f"FLASER 180 {SCAN} 0 0 0 1e6 0 0 9.0 h 9.0"]
+    with pytest.raises(MapTooLarge, match=r"for 2 particles would take [\d.]+ GiB, above the bound of 4 GiB"):
+        replay(carmen.parse_lines(far), RBPFConfig(particles=2), max_range=8.0)
+
+
 @pytest.mark.parametrize("n", [180, 181, 361, 541])
 def test_flaser_of_any_width_spans_the_field_of_view(n):
     line = f"FLASER {n} {' '.join(['1.0'] * n)} 0 0 0 0 0 0 1.0 host 1.0"

@@ -30,6 +30,7 @@ import numpy as np
 from .. import certainty
 from ..grid import GridGeometry
 from ..motion import compose_local, local_delta, local_motion_std
+from ..validation import MAX_LASER_RANGE, Real, check_value
 from . import _matching
 from .config import RBPFConfig
 from .occupancy import ParticleMaps
@@ -82,8 +83,7 @@ class RBPF:
 
     def __init__(self, config: RBPFConfig = RBPFConfig(), *, max_range: float,
                  geometry: GridGeometry | None = None, grow_chunk: float | None = None):
-        if not max_range > 0:
-            raise ValueError(f"max_range must be positive, got {max_range!r}")
+        check_value(max_range, Real(0.0, MAX_LASER_RANGE, open_lo=True, unit="m"), "RBPF", "max_range")
         self.config = config
         self.max_range = float(max_range)
         self.cell_codes = CellCodes.from_config(config)

@@ -24,7 +24,7 @@ from .config import AgentConfig
 from .episodes import PolicyActor, nanmean, run_episodes
 from .evaluate import EVALUATION_SEED, evaluate_model
 from .loop_order import LOOP_ORDER_KEY
-from .train import make_env, train
+from .train import make_env, set_torch_threads, train
 
 #: Ground-truth columns of the benchmark table, with their labels.
 TABLE_COLUMNS = {
@@ -53,9 +53,7 @@ class Job:
 
 def run_job(job: Job) -> dict:
     """Do one job (in whatever process runs it); its episode rows, learning curve and wall time."""
-    import torch
-
-    torch.set_num_threads(1)  # the jobs are the parallelism
+    set_torch_threads(1)  # the jobs are the parallelism
     started = time.perf_counter()
     curve = []
     if job.kind == "agent":

@@ -46,6 +46,23 @@ class TrainResult:
     interrupted: bool = False
 
 
+#: torch threads of the learner unless told otherwise: SB3's small networks on a CPU run fastest on
+#: one thread, and the env workers need the other cores (two threads beside busy workers made
+#: PPO 5-20x slower here).
+DEFAULT_TORCH_THREADS = 1
+
+
+def set_torch_threads(threads: int | None = None) -> int:
+    """Set torch's intra-op threads (``None``: :data:`DEFAULT_TORCH_THREADS`); returns the number set."""
+    import torch
+
+    threads = DEFAULT_TORCH_THREADS if threads is None else threads
+    if not (isinstance(threads, int) and 1 <= threads <= 1024):
+        raise ValueError(f"--torch-threads: expected an integer in [1, 1024], got {threads!r}")
+    torch.set_num_threads(threads)
+    return threads
+
+
 def make_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_worker: bool = False) -> gym.Env:
     """``gym.make`` of an emmi_gym id, wrapped to report the episode's loop order (:class:`LoopOrderInfo`);
     importable by reference, so spawned workers can build it. In a ``vec_worker`` (a subprocess of
@@ -205,8 +222,12 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     started = time.perf_counter()
     interrupted = False
     try:
-        model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
-                    reset_num_timesteps=start is None, tb_log_name="run")
+        with warnings.catch_warnings():
+            # the held-out evaluation runs in this process (a DummyVecEnv) while training may use
+            # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
+            warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
+            model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
+                        reset_num_timesteps=start is None, tb_log_name="run")
         with interrupts_deferred():
             model_path = save_atomically(model.save, run_dir / "model.zip")
     except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from

@@ -7,12 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import Integer, Real, check_fields, option
+from ..validation import MAX_LASER_RANGE, Integer, Real, check_fields, option
 from ._raycast import cast_rays
 
-#: Upper bounds of the laser's sizes: real scanners have at most a few thousand beams and 80 m range.
+#: Upper bound of the beams: real scanners have at most a few thousand.
 MAX_BEAMS = 10_000
-MAX_RANGE = 100.0
 
 
 @dataclass(frozen=True)
@@ -25,7 +24,7 @@ class LaserConfig:
 
     fov: float = option(2.0 * math.pi, Real(0.0, 2.0 * math.pi, open_lo=True, unit="radians"))
     n_beams: int = option(180, Integer(1, MAX_BEAMS, "each beam is cast at every simulator step"))
-    max_range: float = option(8.0, Real(0.0, MAX_RANGE, open_lo=True, unit="m"))
+    max_range: float = option(8.0, Real(0.0, MAX_LASER_RANGE, open_lo=True, unit="m"))
     range_sigma: float = option(0.02, Real(0.0, 1.0, unit="m"))
     drop_probability: float = option(0.01, Real(0.0, 1.0, open_hi=True))
 
