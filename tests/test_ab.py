@@ -15,7 +15,8 @@ from matplotlib.image import imread
 
 from emmi_gym.cli import main
 from emmi_gym.experiments import ABSettings, run_episode
-from emmi_gym.experiments.report import SUMMARY_COLUMNS, mean_interval
+from emmi_gym.experiments.intervals import mean_interval
+from emmi_gym.experiments.report import SUMMARY_COLUMNS
 
 SEEDS = 8
 
@@ -120,3 +121,16 @@ def test_bad_input_is_a_clear_error(argv, message, capsys):
         main(argv + ["--out", "unused"])
     assert exit_.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_intervals_stay_within_what_a_measure_can_be():
+    from emmi_gym.experiments.intervals import difference_interval, measure_interval
+
+    share, low, high, n = measure_interval([1.0, 1.0, 0.0], "completed")
+    assert (share, n) == (pytest.approx(2 / 3), 3) and 0.0 <= low < share < high <= 1.0
+    assert measure_interval([1.0, 1.0, 1.0], "completed")[1] < 1.0  # Wilson: not empty at n successes
+    _, low, high, _ = measure_interval([0.8, 1.0, 1.0], "map_accuracy")
+    assert 0.0 <= low and high == 1.0
+    assert measure_interval([0.05, 0.3, 0.02], "ate")[1] == 0.0
+    _, low, high, _ = difference_interval([-1.0, 0.0, 0.0], "completed")
+    assert -1.0 <= low and high <= 1.0

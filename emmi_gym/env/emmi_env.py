@@ -23,7 +23,7 @@ from ..world import (
 from . import observation as obs
 from .candidates import Target, candidate_slots
 from .config import EnvConfig, make_config
-from .planner import KEEP_OUT_MARGIN, path_obstructed, travel_costs
+from .planner import BLOCKING_P, KEEP_OUT_MARGIN, RECOVERY_BLOCKING_P, path_obstructed, travel_costs
 from .rendering import HumanWindow, render_frame
 from .rewards import Snapshot, reward_components, total_reward
 
@@ -266,9 +266,11 @@ class EmmiEnv(gym.Env):
         expected = self._with_scan_layer(self.slam.expected_map(), pose)
         radius = self.robot_config.radius
         if not path_obstructed(expected, self.geometry, [tuple(pose[:2])] + follower.remaining, radius,
-                               skip=radius + KEEP_OUT_MARGIN, horizon=self.laser_config.max_range):
+                               skip=radius + KEEP_OUT_MARGIN, horizon=self.laser_config.max_range,
+                               blocking_p=self._blocking_p):
             return follower
-        costs = travel_costs(expected, self.geometry, pose[:2], radius, goal_xy=(target.x, target.y))
+        costs = travel_costs(expected, self.geometry, pose[:2], radius, goal_xy=(target.x, target.y),
+                             blocking_p=self._blocking_p)
         if not np.isfinite(costs.cost_to(target.x, target.y)):
             return None
         return self._follower(costs.path_to(target.x, target.y))
@@ -326,9 +328,13 @@ class EmmiEnv(gym.Env):
             # is replanned: a wall the particles blur but the laser sees hides no frontier behind it
             pose = self.slam.pose_estimate(self.sim.odometry_pose)
             planning_map = self._with_scan_layer(self._expected.copy(), pose)
-            self._costs = travel_costs(planning_map, self.geometry, pose[:2], self.robot_config.radius)
-            self._slots = candidate_slots(planning_map, self.slam.paths[self.slam.best], self._costs,
-                                          self.config.n_frontiers, self.config.n_revisits, self._blocked)
+            for self._blocking_p in (BLOCKING_P, RECOVERY_BLOCKING_P):  # the recovery if nothing is reachable
+                self._costs = travel_costs(planning_map, self.geometry, pose[:2], self.robot_config.radius,
+                                           blocking_p=self._blocking_p)
+                self._slots = candidate_slots(planning_map, self.slam.paths[self.slam.best], self._costs,
+                                              self.config.n_frontiers, self.config.n_revisits, self._blocked)
+                if any(slot is not None for slot in self._slots):
+                    break
             self._loop_spreads = [certainty.loop_displacement_spread(self.slam.paths, self.slam.log_weights,
                                                                      t.path_index, log_weights=True)
                                   if t is not None and t.kind == "revisit" else 0.0 for t in self._slots]

@@ -15,6 +15,10 @@ from ..grid import GridGeometry
 
 OCCUPIED_P = 0.65   # expected-map probability above which a cell is surely an obstacle
 BLOCKING_P = 0.55   # ... above which the planner keeps out: a wall blurred by disagreeing particles still blocks
+# ... above which it keeps out when nothing can be reached at BLOCKING_P (a recovery, as move_base
+# clears its costmap): a ghost wall of particles that disagree can shut the robot in a slot of
+# its own map; walls that most particles agree on, and the scan's obstacle layer, still block
+RECOVERY_BLOCKING_P = 0.8
 FREE_P = 0.47       # ... below which it is known free (observed in the sense of eq. 10: |p - 0.5| > 0.0224)
 UNKNOWN_COST = 2.0  # unknown cells may be crossed (optimistic planning), at twice the cost
 PREFERRED_CLEARANCE = 0.8  # m from an obstacle beyond which a cell costs no extra
@@ -63,7 +67,7 @@ class CostMap:
 
 
 def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, robot_radius: float,
-                 goal_xy=None) -> CostMap:
+                 goal_xy=None, blocking_p: float = BLOCKING_P) -> CostMap:
     """Cost-distance from ``start_xy`` over the expected map (to every cell, or until ``goal_xy`` is reached).
 
     Obstacles (p > 0.55: more likely occupied than not, so a wall blurred by particles
@@ -77,7 +81,7 @@ def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, rob
     brushing a wall can still leave.
     """
     res = geometry.resolution
-    obstacle = expected_map > BLOCKING_P
+    obstacle = expected_map > blocking_p
     clearance = ndimage.distance_transform_edt(~obstacle) * res
     costs = np.where(expected_map < FREE_P, 1.0, UNKNOWN_COST)
     keep_out = robot_radius + KEEP_OUT_MARGIN
@@ -100,8 +104,8 @@ def _clipped_cell(geometry: GridGeometry, xy) -> tuple[int, int]:
 
 
 def path_obstructed(expected_map: np.ndarray, geometry: GridGeometry, polyline, robot_radius: float,
-                    skip: float = 0.0, horizon: float = math.inf) -> bool:
-    """Whether an obstacle (p > ``BLOCKING_P``) now lies closer than the planner's keep-out distance
+                    skip: float = 0.0, horizon: float = math.inf, blocking_p: float = BLOCKING_P) -> bool:
+    """Whether an obstacle (p > ``blocking_p``) now lies closer than the planner's keep-out distance
     to the polyline of (x, y) points, between ``skip`` metres along it (where the robot is) and
     ``skip + horizon`` (what the sensor can have changed, as a local costmap's window: the cost then
     does not grow with the path's length, which a wildly wrong pose estimate can make kilometres)."""
@@ -120,4 +124,4 @@ def path_obstructed(expected_map: np.ndarray, geometry: GridGeometry, polyline, 
     disk = (dr * dr + dc * dc) * res * res < (robot_radius + KEEP_OUT_MARGIN) ** 2
     r = np.clip(rows[:, None] + dr[disk][None, :], 0, geometry.rows - 1)
     c = np.clip(cols[:, None] + dc[disk][None, :], 0, geometry.cols - 1)
-    return bool(np.any(expected_map[r, c] > BLOCKING_P))
+    return bool(np.any(expected_map[r, c] > blocking_p))

@@ -8,9 +8,9 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 from .ab import POLICIES, ABRun
+from .intervals import difference_interval, measure_interval
 
 #: Measures plotted per RBPF update, as the paper's Fig. 6 (f), (g), (h).
 FIGURE_MEASURES = (("emmi", "EMMI (bits/cell)"), ("pose_entropy", "pose entropy (nats)"),
@@ -28,7 +28,6 @@ SUMMARY_COLUMNS = {
     "coverage": "final coverage",
     "completed": "reached both goals",
 }
-CONFIDENCE = 0.95
 
 
 def horizons(runs: list[ABRun]) -> dict[int, int | None]:
@@ -67,19 +66,6 @@ def summary_rows(runs: list[ABRun]) -> list[dict]:
     return [run_measures(run, horizon.get(run.seed)) for run in runs]
 
 
-def mean_interval(values, confidence: float = CONFIDENCE) -> tuple[float, float, float, int]:
-    """Mean and Student-t confidence interval of the finite values: (mean, low, high, n)."""
-    x = np.asarray(values, dtype=float)
-    x = x[np.isfinite(x)]
-    if x.size == 0:
-        return math.nan, math.nan, math.nan, 0
-    mean = float(x.mean())
-    if x.size < 2 or np.all(x == x[0]):
-        return mean, mean, mean, int(x.size)
-    low, high = stats.t.interval(confidence, x.size - 1, loc=mean, scale=stats.sem(x))
-    return mean, float(low), float(high), int(x.size)
-
-
 def paired_differences(rows: list[dict], column: str) -> np.ndarray:
     """A minus B of ``column``, per seed that has both runs (NaN where either is missing)."""
     by_seed: dict[int, dict[str, float]] = {}
@@ -93,10 +79,10 @@ def summary_table(rows: list[dict]) -> dict[str, dict[str, tuple]]:
     (with, for the difference, how many seeds had A above B)."""
     table = {}
     for column in SUMMARY_COLUMNS:
-        entry = {arm: mean_interval([r[column] for r in rows if r["arm"] == arm]) for arm in POLICIES}
+        entry = {arm: measure_interval([r[column] for r in rows if r["arm"] == arm], column) for arm in POLICIES}
         diff = paired_differences(rows, column)
         finite = diff[np.isfinite(diff)]
-        entry["A - B"] = mean_interval(finite) + (int(np.sum(finite > 0)),)
+        entry["A - B"] = difference_interval(finite, column) + (int(np.sum(finite > 0)),)
         table[column] = entry
     return table
 
@@ -104,16 +90,18 @@ def summary_table(rows: list[dict]) -> dict[str, dict[str, tuple]]:
 def _cell(interval: tuple, digits: int, signed: bool) -> str:
     mean, low, high, n = interval[:4]
     if n == 0:
-        return "n/a"
+        return "n/a (n=0)"
     sign = "+" if signed else ""
-    return f"{mean:{sign}.{digits}f} [{low:{sign}.{digits}f}, {high:{sign}.{digits}f}]"
+    return f"{mean:{sign}.{digits}f} [{low:{sign}.{digits}f}, {high:{sign}.{digits}f}] (n={n})"
 
 
 def markdown_summary(rows: list[dict], settings_text: str) -> str:
     """The summary as a markdown table: mean and 95% interval per arm and of the paired difference."""
     table = summary_table(rows)
     seeds = sorted({r["seed"] for r in rows})
-    lines = [f"A/B experiment: {settings_text}; {len(seeds)} seeds; mean [95% t-interval] over seeds.",
+    lines = [f"A/B experiment: {settings_text}; {len(seeds)} seeds; mean [95% interval] over the n seeds with a "
+             "value: Wilson's for the share that reached both goals, Student's t clipped to the measure's range "
+             "for the others.",
              "A = close_loop_first (close the loop, then the new area); B = explore_first.",
              "Changes are read the same number of RBPF updates after the decision for A and B: "
              "the updates A needed to close the loop (the paper's Fig. 6 compares the two step by step).",
@@ -126,6 +114,11 @@ def markdown_summary(rows: list[dict], settings_text: str) -> str:
         count = f"{diff[4]}/{diff[3]}" if diff[3] else "n/a"
         lines.append(f"| {label} | {_cell(entry['A'], digits, change)} | {_cell(entry['B'], digits, change)} | "
                      f"{_cell(diff, digits, True)} | {count} |")
+    failed = [f"seed {r['seed']} {r['arm']} ({'no goal' if r['first_goal_update'] is None else 'first goal only'})"
+              for r in rows if not r["completed"]]
+    if failed:
+        lines += ["", f"Did not reach both goals within the decision budget ({len(failed)} of {len(rows)} runs; their "
+                  f"changes and scores are in the table, as far as they got): {', '.join(failed)}."]
     return "\n".join(lines) + "\n"
 
 
@@ -174,7 +167,8 @@ def plot_metrics(runs: list[ABRun], path: Path) -> None:
             values = values[:, steps]
             mean = np.nanmean(values, axis=0)
             spread = np.nanstd(values, axis=0)
-            ax.plot(steps, mean, style, color=colour, lw=1.6, label=f"{arm}: {POLICIES[arm]}")
+            ax.plot(steps, mean, style, color=colour, lw=1.6,
+                    label=f"{arm}: {POLICIES[arm]} ({values.shape[0]} runs; drawn while 2/3 of them last)")
             ax.fill_between(steps, mean - spread, mean + spread, color=colour, alpha=0.2, lw=0)
         ax.axvline(decision, color="k", lw=0.8, ls=":")
         if closures:

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..experiments.report import mean_interval, write_csv
+from ..experiments.intervals import measure_interval
+from ..experiments.report import write_csv
 from ..parallel import run_in_processes
 from .config import AgentConfig
 from .episodes import PolicyActor, nanmean, run_episodes
@@ -164,7 +165,7 @@ def summary(results: list[dict]) -> dict[str, dict[str, tuple]]:
                 samples = [nanmean([row.get(column, math.nan) for row in r["rows"]]) for r in own]
             else:
                 samples = [row.get(column, math.nan) for r in own for row in r["rows"]]
-            entry[column] = mean_interval(samples)
+            entry[column] = measure_interval(samples, column)
         entry["agents"] = len(own) if own[0]["job"].kind == "agent" else 0
         table[variant] = entry
     return table
@@ -183,9 +184,9 @@ def markdown(results: list[dict], header: str) -> str:
             if n == 0:
                 cells.append("n/a")
             elif n == 1:  # one agent: no interval
-                cells.append(f"{mean:.{digits}f}")
+                cells.append(f"{mean:.{digits}f} (n=1)")
             else:
-                cells.append(f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]")
+                cells.append(f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}] (n={n})")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
