@@ -80,7 +80,7 @@ def test_buffer_class_per_algorithm_and_observation():
 
 @pytest.mark.parametrize("change, field, expected", [
     ({"algorithm": "DQN", "hyperparameters": {}}, "discount_unit", "absent for DQN"),
-    ({"discount_unit": 0}, "discount_unit", "an integer >= 1"),
+    ({"discount_unit": 0}, "discount_unit", "an integer in [1, 1000000] or null"),
     ({"hyperparameters": {"rollout_buffer_kwargs": {}}}, "hyperparameters.rollout_buffer_kwargs", "not given with"),
 ])
 def test_bad_discount_unit_is_a_clear_error(change, field, expected):
