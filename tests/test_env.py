@@ -91,6 +91,11 @@ def test_render_rgb_array_and_human():
     env.reset(seed=0)
     frame = env.render()
     assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
+    from emmi_gym.env.rendering import _BEST_PATH, _PARTICLES, _ROBOT, _TRUE_PATH, CAPTION_HEIGHT
+
+    legend = frame[:CAPTION_HEIGHT].reshape(-1, 3)
+    for colour in (_TRUE_PATH, _ROBOT, _BEST_PATH, _PARTICLES):  # each colour's name is written in it
+        assert np.any(np.all(legend == colour, axis=1))
     assert env.metadata["render_fps"] == 10  # the 0.1 s control period
     human = gym.make("emmi_gym/ExploreVelocity-v0", render_mode="human", **SMALL)
     human.reset(seed=0)

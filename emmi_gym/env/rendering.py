@@ -72,24 +72,49 @@ def map_rgb(expected_map: np.ndarray) -> np.ndarray:
     return np.repeat(grey[:, :, None], 3, axis=2)
 
 
+_TRUE_PATH, _ROBOT, _BEST_PATH, _PARTICLES = (0, 160, 0), (220, 30, 30), (255, 140, 0), (30, 60, 220)
+CAPTION_HEIGHT = 16
+
+
+def caption(width: int, segments) -> np.ndarray:
+    """A white strip ``width`` pixels wide with (text, colour) segments in Pillow's built-in font: the
+    panel's title and legend (which colour is what)."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    strip = Image.new("RGB", (width, CAPTION_HEIGHT), (255, 255, 255))
+    draw, font = ImageDraw.Draw(strip), ImageFont.load_default()
+    draw.fontmode = "1"  # no anti-aliasing: each legend word in exactly its colour
+    x = 3
+    for text, colour in segments:
+        draw.text((x, 2), text, fill=colour, font=font)
+        x += int(draw.textlength(text, font=font))
+    return np.asarray(strip)
+
+
 def render_frame(bounds, truth_grid, geometry, expected_map, true_pose, true_path, particle_poses, best_path,
                  robot_radius: float) -> np.ndarray:
     """Left: the true world, the true path (green) and robot (red). Right: the expected map,
-    the particles (blue) and the best particle's path (orange). Returns (H, W, 3) uint8."""
+    the particles (blue) and the best particle's path (orange). Each panel has a caption saying
+    so. Returns (H, W, 3) uint8."""
     left = Canvas(bounds)
     left.image[:] = _UNKNOWN
     left.grid(truth_rgb(truth_grid), geometry)
     if len(true_path) > 1:
-        left.polyline(np.asarray(true_path)[:, :2], (0, 160, 0))
-    left.robot(true_pose, (220, 30, 30), robot_radius)
+        left.polyline(np.asarray(true_path)[:, :2], _TRUE_PATH)
+    left.robot(true_pose, _ROBOT, robot_radius)
     right = Canvas(bounds)
     right.image[:] = 127
     right.grid(map_rgb(expected_map), geometry)
     if len(best_path) > 1:
-        right.polyline(best_path[:, :2], (255, 140, 0))
-    right.points(particle_poses[:, 0], particle_poses[:, 1], (30, 60, 220), radius=1)
-    gap = np.full((left.height, 8, 3), 255, dtype=np.uint8)
-    return np.concatenate([left.image, gap, right.image], axis=1)
+        right.polyline(best_path[:, :2], _BEST_PATH)
+    right.points(particle_poses[:, 0], particle_poses[:, 1], _PARTICLES, radius=1)
+    black = (0, 0, 0)
+    left_panel = np.concatenate([caption(left.width, [("truth: ", black), ("path", _TRUE_PATH), (", ", black),
+                                                      ("robot", _ROBOT)]), left.image])
+    right_panel = np.concatenate([caption(right.width, [("expected map: ", black), ("best path", _BEST_PATH),
+                                                        (", ", black), ("particles", _PARTICLES)]), right.image])
+    gap = np.full((left_panel.shape[0], 8, 3), 255, dtype=np.uint8)
+    return np.concatenate([left_panel, gap, right_panel], axis=1)
 
 
 class HumanWindow:

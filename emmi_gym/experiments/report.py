@@ -218,7 +218,12 @@ def plot_maps(runs: list[ABRun], seed: int, walls: np.ndarray, path: Path) -> No
                      fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])
-    fig.tight_layout()
+    from matplotlib.lines import Line2D
+
+    fig.legend([Line2D([], [], color="tab:cyan", lw=1.5), Line2D([], [], color="tab:orange", lw=1.5)],
+               ["true walls", "best particle's path"], loc="lower center", ncol=2, fontsize=8, frameon=False,
+               title="expected map: white free, black occupied, grey unknown", title_fontsize=8)
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
