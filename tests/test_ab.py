@@ -8,6 +8,7 @@ and the new area must be mapped better when A came first.
 """
 
 import csv
+import re
 
 import numpy as np
 import pytest
@@ -105,6 +106,16 @@ def test_demo_writes_the_figures_and_prints_the_summary(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "| EMMI change after the decision (bits/cell) |" in printed
     assert "A above B on" in printed
+    # every run reaches both goals (seed 2's A used to stand still once a wall the particles dispute
+    # shut it in), and no interval leaves its measure's range
+    assert "| reached both goals | 1.000 [0.439, 1.000] (n=3) | 1.000 [0.439, 1.000] (n=3) |" in printed
+    assert "Did not reach both goals" not in printed
+    for label in ("final map accuracy", "new-area map accuracy at the end", "final coverage"):
+        row = next(line for line in printed.splitlines() if line.startswith(f"| {label} |"))
+        for low, high in re.findall(r"\[([-+\d.]+), ([-+\d.]+)\]", row)[:2]:  # the A and B cells
+            assert 0.0 <= float(low) <= float(high) <= 1.0
+    ate = next(line for line in printed.splitlines() if line.startswith("| final ATE (m) |"))
+    assert all(float(low) >= 0.0 for low in re.findall(r"\[([-+\d.]+),", ate)[:2])
     for name in ("ab_summary.md", "ab_fig6_metrics.png", "ab_fig6_maps.png"):
         assert f"wrote {tmp_path / name}" in printed and (tmp_path / name).stat().st_size > 0
 
@@ -134,3 +145,4 @@ def test_intervals_stay_within_what_a_measure_can_be():
     assert measure_interval([0.05, 0.3, 0.02], "ate")[1] == 0.0
     _, low, high, _ = difference_interval([-1.0, 0.0, 0.0], "completed")
     assert -1.0 <= low and high <= 1.0
+

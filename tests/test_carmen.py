@@ -219,3 +219,12 @@ def test_replay_matches_truth_by_time_and_writes_tum(tmp_path):
     assert table.shape == (6, 8)
     np.testing.assert_allclose(table[:, 0], np.arange(6.0))
     np.testing.assert_allclose(table[:, 6] ** 2 + table[:, 7] ** 2, 1.0, atol=1e-6)
+
+
+def test_help_is_plain_text(capsys):
+    from emmi_gym.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "Active SLAM" in out and "``" not in out

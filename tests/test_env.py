@@ -198,6 +198,30 @@ def test_async_vector_env_and_sb3_subproc_spawn():
     (dict(world="office"), "start_at='decision' needs a 'to_decision' route"),
     (dict(coverage_target=1.5), r"field 'coverage_target': expected a finite number in \(0, 1\]"),
     (dict(slam={"likelihood_exponent": -1}), r"field 'slam.likelihood_exponent': expected a finite number in \(0, 1\]"),
+    # wrong types, never a TypeError from deep inside
+    (dict(laser={"n_beams": 3.0}), r"field 'laser.n_beams': expected an integer in \[1, 10000\].*, got 3.0"),
+    (dict(laser={"n_beams": float("nan")}), r"field 'laser.n_beams': .*, got nan"),
+    (dict(slam={"likelihood_sigma": 1e-300}), r"field 'slam.likelihood_sigma': expected a finite number in \[0.001, 10\]"),
+    (dict(world=None, generator={"spacing": float("inf")}), r"field 'generator.spacing': .*, got inf"),
+    (dict(world=None, generator={"wall_thickness": "x"}), r"field 'generator.wall_thickness': .*, got 'x'"),
+    (dict(egocentric="no"), r"field 'egocentric': expected true or false, got 'no'"),
+    (dict(slam={"particles": 5}), r"field 'slam.particles': expected no particles inside slam: give it as the top-level"),
+    (dict(time_cost="cheap"), r"field 'time_cost': expected a finite number in \[0, 1000\], got 'cheap'"),
+    # values that would give NaN or inf later
+    (dict(reward_scale=float("inf")), r"field 'reward_scale': expected a finite number in \(0, 1e\+06\] or null"),
+    (dict(reward_scale=1e308), r"field 'reward_scale': .*, got 1e\+308"),
+    (dict(odometry_noise={"rot_from_rot": 1e300}), r"field 'odometry_noise.rot_from_rot': expected a finite number in \[0, 1\]"),
+    (dict(slam={"logodds_step": 1e6}), r"field 'slam.logodds_step': expected a finite number in \[0.001, 1\]"),
+    (dict(laser={"range_sigma": float("inf")}), r"field 'laser.range_sigma': .*, got inf"),
+    (dict(world=None, generator={"wall_thickness": float("nan")}), r"field 'generator.wall_thickness': .*, got nan"),
+    # sizes: bounded before anything is allocated
+    (dict(particles=10**9), r"field 'particles': expected an integer in \[1, 1000\] \(each particle holds a whole map\)"),
+    (dict(obs_size=10**6), r"field 'obs_size': expected an integer in \[16, 1024\]"),
+    (dict(n_frontiers=10**7), r"field 'n_frontiers': expected an integer in \[1, 64\]"),
+    (dict(world=None, generator={"nx": 10**4}), r"field 'generator.nx': expected an integer in \[2, 20\]"),
+    (dict(world=None, generator={"spacing": 1e6}), r"field 'generator.spacing': expected a finite number in \[1.6, 50\] m"),
+    (dict(laser={"n_beams": 10**8}), r"field 'laser.n_beams': expected an integer in \[1, 10000\]"),
+    (dict(resolution=1e-9), r"field 'resolution': expected a finite number in \[0.01, 1\] m"),
 ])
 def test_bad_options_raise_a_clear_error(options, message):
     with pytest.raises(ValueError, match=message):
@@ -379,6 +403,14 @@ def test_obstruction_checks_look_only_as_far_as_the_laser():
     assert path_obstructed(expected, geometry, path, 0.2)
     assert not path_obstructed(expected, geometry, path, 0.2, horizon=8.0)
     assert path_obstructed(expected, geometry, path, 0.2, skip=8.0, horizon=8.0)
+
+
+def test_maps_beyond_the_memory_bound_are_refused_with_what_they_would_take():
+    from emmi_gym.slam.occupancy import MapTooLarge
+
+    with pytest.raises(MapTooLarge, match=r"1700 x 3500 cells .* for 1000 particles would take 27.8 GiB, above the "
+                                          r"bound of 4 GiB"):
+        gym.make("emmi_gym/LoopCorridor-v0", particles=1000, resolution=0.01)
 
 
 def test_map_accuracy_is_defined_when_nothing_is_known_to_both():

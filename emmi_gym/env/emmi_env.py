@@ -13,6 +13,7 @@ from ..control import WaypointFollower
 from ..evaluation import absolute_trajectory_error, map_accuracy
 from ..grid import GridGeometry
 from ..slam import RBPF
+from ..slam.occupancy import ParticleMaps
 from ..world import (
     RobotConfig,
     Simulator,
@@ -82,6 +83,9 @@ class EmmiEnv(gym.Env):
         if self._fixed_world is not None and cfg.start_at == "decision" and "to_decision" not in self._fixed_world.routes:
             raise ValueError(f"start_at='decision' needs a 'to_decision' route; world '{self._fixed_world.name}' "
                              f"has {sorted(self._fixed_world.routes)}: use start_at='start'")
+        if self._fixed_world is not None:  # refuse maps too large now, not at the first reset
+            grid = GridGeometry.covering(*self._fixed_world.bounds, cfg.resolution)
+            ParticleMaps.check_memory(grid.rows, grid.cols, cfg.particles, cfg.resolution)
         if cfg.action_mode == "waypoint":
             self.action_space = spaces.Discrete(cfg.n_actions)
         elif cfg.velocity_actions == "continuous":
