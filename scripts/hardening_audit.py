@@ -200,7 +200,8 @@ def training_interrupts(folder: Path) -> list[tuple[str, str, float]]:
         run = folder / f"run_{group}"
         process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", str(folder / "train.yaml"),
                                     "--out", str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                   text=True, start_new_session=True)
+                                   text=True, start_new_session=True,
+                                   preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         while not list((run / "checkpoints").glob("model_*_steps.zip")) and process.poll() is None:
             time.sleep(0.2)
         sent = time.perf_counter()
