@@ -107,7 +107,8 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
     # a shell runs background jobs with SIGINT ignored, and the child would inherit that: give it the default
     process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", str(tmp_path / "agent.yaml"), "--out",
                                 str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                               start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+                               env=dict(os.environ, PYTHONFAULTHANDLER="1"))
     try:
         waited = 0.0
         while not list((run / "checkpoints").glob("model_*_steps.zip")) and process.poll() is None and waited < 300:
@@ -115,7 +116,11 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
             waited += 0.5
         assert process.poll() is None, process.communicate()[1][-2000:]
         (os.killpg if whole_group else os.kill)(process.pid, signal.SIGINT)
-        out, err = process.communicate(timeout=120)  # a deadlock fails here rather than hanging the suite
+        try:
+            out, err = process.communicate(timeout=120)
+        except subprocess.TimeoutExpired:  # a deadlock: every process of the run dumps its threads' stacks
+            os.killpg(process.pid, signal.SIGABRT)
+            pytest.fail(f"no exit 120 s after SIGINT; stacks:\n{process.communicate(timeout=30)[1][-6000:]}")
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)

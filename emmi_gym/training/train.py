@@ -87,8 +87,8 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str):
 def interrupts_deferred():
     """Hold a Ctrl-C (SIGINT) that arrives inside the block until it ends, then raise it: an
     interrupted ``torch.save`` leaves a broken archive and raises its own error instead."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        yield  # signals are the main thread's; an ignored Ctrl-C (a background job) stays ignored
         return
     received = []
     previous = signal.signal(signal.SIGINT, lambda *_: received.append(True))
