@@ -36,8 +36,11 @@ class EnvConfig:
     - ``time_cost`` per simulator step and ``collision_cost`` per colliding step are
       subtracted whatever the reward, so doing nothing never pays.
     - ``laser``, ``odometry_noise``, ``slam``: dicts of :class:`LaserConfig`,
-      :class:`OdometryNoise` and :class:`RBPFConfig` fields; ``particles`` and
-      ``resolution`` are shortcuts into ``slam``.
+      :class:`OdometryNoise` and :class:`RBPFConfig` fields, checked when the config is
+      made; ``particles`` and ``resolution`` set the filter's (not inside ``slam``).
+
+    Every field is typed and bounded (:mod:`emmi_gym.validation`); a mistake raises an
+    ``OptionError`` naming the field.
     """
 
     world: str | None = option("loop_corridor", Maybe(Text(), "a generated world per reset"))
