@@ -293,7 +293,7 @@ def match(grid, hits, coarse, start, climb_ranges, climb_angles, max_range, s, m
     return pose, best
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_precisions, motion_lognorms,
                       normals, climb_ranges, climb_angles, ranges, angles, max_range, s,
                       new_poses, log_increments, matched_flags):
@@ -308,11 +308,11 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
     and add ``exponent * log(eta)`` to the log-weight, eta = sum exp(L) * step volume
     (eq. 20). Otherwise keep x' and add ``exponent * loglik(x')``: the same integral
     estimated by the one sample drawn from the motion model.
+
+    The particles are independent: they are proposed in parallel (numba's threads, see
+    ``numba.set_num_threads``), with the same result whatever the number of threads.
     """
-    m = codes.shape[0]
     lstep, astep = s.linear_step, s.angular_step
-    log_volume = math.log(lstep * lstep * astep)
-    offsets = np.empty((3, ranges.size, 4))  # beam offsets at headings x* - step, x*, x* + step
     stencil = np.zeros((7, 3))
     for axis in range(3):
         step = astep if axis == 2 else lstep
@@ -323,53 +323,65 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
         if 0.0 < ranges[b] < max_range:
             n_likelihood += 1
     min_matched = max(1, int(math.ceil(s.min_matched * n_likelihood)))
+    for i in nb.prange(codes.shape[0]):
+        _propose(i, codes[i], hits[i], coarse[i], motion_samples, motion_means, motion_precisions, motion_lognorms,
+                 normals, climb_ranges, climb_angles, ranges, angles, max_range, s, stencil, min_matched,
+                 new_poses, log_increments, matched_flags)
+
+
+@nb.njit(cache=True)
+def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_precisions, motion_lognorms,
+             normals, climb_ranges, climb_angles, ranges, angles, max_range, s, stencil, min_matched,
+             new_poses, log_increments, matched_flags):
+    """Particle ``i`` of :func:`improved_proposal`: its mode, its Gaussian, its draw and its weight."""
+    astep = s.angular_step
+    log_volume = math.log(s.linear_step * s.linear_step * astep)
+    offsets = np.empty((3, ranges.size, 4))  # beam offsets at headings x* - step, x*, x* + step
     scores = np.empty(7)
     pose = np.empty(3)
-    for i in range(m):
-        grid, cell_hits = codes[i], hits[i]
-        best_pose, _ = match(grid, cell_hits, coarse[i], motion_samples[i], climb_ranges, climb_angles,
-                             max_range, s, motion_means[i], motion_precisions[i])
-        n = beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, offsets[1])
-        centre, matched = log_target(grid, cell_hits, best_pose, offsets[1], n, s, motion_means[i],
-                                     motion_precisions[i])
-        matched_flags[i] = matched >= min_matched
-        if not matched_flags[i]:
-            n = beam_offsets(motion_samples[i, 2], ranges, angles, max_range, s.resolution, offsets[0])
-            gx = (motion_samples[i, 0] - s.origin_x) / s.resolution
-            gy = (motion_samples[i, 1] - s.origin_y) / s.resolution
-            ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s)
-            new_poses[i] = motion_samples[i]
-            log_increments[i] = s.exponent * ll
-            continue
-        beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
-        beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
-        scores[0] = centre + motion_lognorms[i]
-        top = scores[0]
-        for k in range(1, 7):
-            for axis in range(3):
-                pose[axis] = best_pose[axis] + stencil[k, axis]
-            t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
-            value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, motion_means[i], motion_precisions[i])
-            scores[k] = value + motion_lognorms[i]
-            if scores[k] > top:
-                top = scores[k]
-        total = 0.0
-        mean = np.zeros(3)
-        for k in range(7):
-            scores[k] = math.exp(scores[k] - top)
-            total += scores[k]
-            mean += scores[k] * stencil[k]
-        mean /= total
-        cov = np.zeros((3, 3))
-        for k in range(7):
-            d = stencil[k] - mean
-            cov += (scores[k] / total) * np.outer(d, d)
-        cov[0, 0] += 1e-6
-        cov[1, 1] += 1e-6
-        cov[2, 2] += 1e-7
-        chol = np.linalg.cholesky(cov)
-        draw = mean + chol @ normals[i]
-        new_poses[i, 0] = best_pose[0] + draw[0]
-        new_poses[i, 1] = best_pose[1] + draw[1]
-        new_poses[i, 2] = (best_pose[2] + draw[2] + math.pi) % (2.0 * math.pi) - math.pi
-        log_increments[i] = s.exponent * (top + math.log(total) + log_volume)
+    best_pose, _ = match(grid, cell_hits, coarse, motion_samples[i], climb_ranges, climb_angles,
+                         max_range, s, motion_means[i], motion_precisions[i])
+    n = beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, offsets[1])
+    centre, matched = log_target(grid, cell_hits, best_pose, offsets[1], n, s, motion_means[i],
+                                 motion_precisions[i])
+    matched_flags[i] = matched >= min_matched
+    if not matched_flags[i]:
+        n = beam_offsets(motion_samples[i, 2], ranges, angles, max_range, s.resolution, offsets[0])
+        gx = (motion_samples[i, 0] - s.origin_x) / s.resolution
+        gy = (motion_samples[i, 1] - s.origin_y) / s.resolution
+        ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s)
+        new_poses[i] = motion_samples[i]
+        log_increments[i] = s.exponent * ll
+        return
+    beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
+    beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
+    scores[0] = centre + motion_lognorms[i]
+    top = scores[0]
+    for k in range(1, 7):
+        for axis in range(3):
+            pose[axis] = best_pose[axis] + stencil[k, axis]
+        t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
+        value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, motion_means[i], motion_precisions[i])
+        scores[k] = value + motion_lognorms[i]
+        if scores[k] > top:
+            top = scores[k]
+    total = 0.0
+    mean = np.zeros(3)
+    for k in range(7):
+        scores[k] = math.exp(scores[k] - top)
+        total += scores[k]
+        mean += scores[k] * stencil[k]
+    mean /= total
+    cov = np.zeros((3, 3))
+    for k in range(7):
+        d = stencil[k] - mean
+        cov += (scores[k] / total) * np.outer(d, d)
+    cov[0, 0] += 1e-6
+    cov[1, 1] += 1e-6
+    cov[2, 2] += 1e-7
+    chol = np.linalg.cholesky(cov)
+    draw = mean + chol @ normals[i]
+    new_poses[i, 0] = best_pose[0] + draw[0]
+    new_poses[i, 1] = best_pose[1] + draw[1]
+    new_poses[i, 2] = (best_pose[2] + draw[2] + math.pi) % (2.0 * math.pi) - math.pi
+    log_increments[i] = s.exponent * (top + math.log(total) + log_volume)

@@ -28,6 +28,7 @@ import yaml
 from stable_baselines3.common.callbacks import CheckpointCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
+from ..parallel import one_kernel_thread
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument
 from .loop_order import LoopOrderInfo
@@ -66,11 +67,13 @@ def set_torch_threads(threads: int | None = None) -> int:
 def make_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_worker: bool = False) -> gym.Env:
     """``gym.make`` of an emmi_gym id, wrapped to report the episode's loop order (:class:`LoopOrderInfo`);
     importable by reference, so spawned workers can build it. In a ``vec_worker`` (a subprocess of
-    vectorised envs) Ctrl-C is ignored: the main process handles it and closes the workers."""
+    vectorised envs) Ctrl-C is ignored (the main process handles it and closes the workers) and the
+    kernels run on one thread (the processes are the parallelism)."""
     import emmi_gym  # noqa: F401  (registers the ids in a fresh worker process)
 
     if vec_worker:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        one_kernel_thread()
     return LoopOrderInfo(gym.make(env_id, render_mode=render_mode, **kwargs))
 
 
