@@ -10,11 +10,11 @@ from tqdm.auto import tqdm
 
 
 def one_kernel_thread() -> None:
-    """Run the numba kernels on one thread in this process: where processes are the parallelism
+    """Run the particle kernels on one thread in this process: where processes are the parallelism
     (worker pools, vectorised envs), threads in each would only compete for the cores."""
-    import numba
+    from .slam.threads import set_kernel_threads
 
-    numba.set_num_threads(1)
+    set_kernel_threads(1)
 
 
 def run_in_processes(function, jobs: list, *, workers: int | None = None, desc: str = "runs",

@@ -90,9 +90,17 @@ def test_metrics_are_those_of_the_certainty_functions(loop_runs):
     assert all(set(r.phase_ms) == {"scan_matching", "insertion", "weighting", "resampling", "metrics"} for r in rows)
 
 
-def test_same_seed_same_filter_bit_for_bit():
-    a = loop_run(3, RBPFConfig(particles=5))
-    b = loop_run(3, RBPFConfig(particles=5))
+def test_same_seed_same_filter_bit_for_bit_on_any_number_of_threads():
+    from emmi_gym.slam.threads import kernel_threads, set_kernel_threads
+
+    threads = kernel_threads()
+    try:
+        set_kernel_threads(1)
+        a = loop_run(3, RBPFConfig(particles=5))
+        set_kernel_threads(3)  # chunks of 2, 2 and 1 particles on three threads
+        b = loop_run(3, RBPFConfig(particles=5))
+    finally:
+        set_kernel_threads(threads)
     np.testing.assert_array_equal(a[2].paths, b[2].paths)
     np.testing.assert_array_equal(a[2].log_weights, b[2].log_weights)
     np.testing.assert_array_equal(a[2].maps.codes, b[2].maps.codes)

@@ -279,8 +279,8 @@ def test_improved_proposal_matches_twin():
     ranges = rng.uniform(0.3, 1.2, 24)
     angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
     new, inc, flags = np.empty((1, 3)), np.empty(1), np.zeros(1, dtype=np.bool_)
-    MT.improved_proposal(codes, all_hits, coarse, sample, mean, precision, lognorm, normals, ranges, angles, ranges,
-                         angles, 3.0, settings(), new, inc, flags)
+    MT.improved_proposal(0, 1, codes, all_hits, coarse, sample, mean, precision, lognorm, normals, ranges, angles,
+                         ranges, angles, 3.0, settings(), new, inc, flags)
     best, _, _ = twin_hill_climb(grid, hits, sample[0], ranges, angles, mean[0], precision[0], 0.05, 0.05, 3, 30)
     stencil = np.zeros((7, 3))
     for axis, step in enumerate((0.05, 0.05, 0.05)):

@@ -293,9 +293,9 @@ def match(grid, hits, coarse, start, climb_ranges, climb_angles, max_range, s, m
     return pose, best
 
 
-@nb.njit(cache=True, parallel=True)
-def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_precisions, motion_lognorms,
-                      normals, climb_ranges, climb_angles, ranges, angles, max_range, s,
+@nb.njit(cache=True, nogil=True)
+def improved_proposal(start, stop, codes, hits, coarse, motion_samples, motion_means, motion_precisions,
+                      motion_lognorms, normals, climb_ranges, climb_angles, ranges, angles, max_range, s,
                       new_poses, log_increments, matched_flags):
     """The improved proposal of GMapping (Grisetti et al. 2007, eqs. 18-20), for every particle.
 
@@ -309,8 +309,9 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
     (eq. 20). Otherwise keep x' and add ``exponent * loglik(x')``: the same integral
     estimated by the one sample drawn from the motion model.
 
-    The particles are independent: they are proposed in parallel (numba's threads, see
-    ``numba.set_num_threads``), with the same result whatever the number of threads.
+    Proposes particles ``start`` to ``stop`` - 1: the particles are independent, so chunks of
+    them run at once on threads (:mod:`emmi_gym.slam.threads`; the GIL is released), with the
+    same result whatever the number of threads.
     """
     lstep, astep = s.linear_step, s.angular_step
     stencil = np.zeros((7, 3))
@@ -323,13 +324,13 @@ def improved_proposal(codes, hits, coarse, motion_samples, motion_means, motion_
         if 0.0 < ranges[b] < max_range:
             n_likelihood += 1
     min_matched = max(1, int(math.ceil(s.min_matched * n_likelihood)))
-    for i in nb.prange(codes.shape[0]):
+    for i in range(start, stop):
         _propose(i, codes[i], hits[i], coarse[i], motion_samples, motion_means, motion_precisions, motion_lognorms,
                  normals, climb_ranges, climb_angles, ranges, angles, max_range, s, stencil, min_matched,
                  new_poses, log_increments, matched_flags)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_precisions, motion_lognorms,
              normals, climb_ranges, climb_angles, ranges, angles, max_range, s, stencil, min_matched,
              new_poses, log_increments, matched_flags):

@@ -36,6 +36,7 @@ from .config import RBPFConfig
 from .occupancy import ParticleMaps
 from .resampling import systematic_resample
 from .sensor_model import CellCodes
+from .threads import run_in_chunks
 
 #: Floors on the motion model's pose deviations (m, m, rad), so that a standing update stays proper.
 _MOTION_FLOOR = np.array([0.01, 0.01, 0.005])
@@ -213,10 +214,9 @@ class RBPF:
         matched = np.zeros(m, dtype=np.bool_)
         g = self.geometry
         settings = _matching.match_settings(cfg, g.origin_x, g.origin_y, g.resolution, self.maps.block)
-        _matching.improved_proposal(
-            self.maps.codes, self.maps.hits, self.maps.coarse, samples, means, precisions, lognorms,
-            proposal_normals, climb_ranges, climb_angles, beam_ranges, beam_angles, self.max_range, settings,
-            new_poses, increments, matched)
+        run_in_chunks(_matching.improved_proposal, m, self.maps.codes, self.maps.hits, self.maps.coarse, samples,
+                      means, precisions, lognorms, proposal_normals, climb_ranges, climb_angles, beam_ranges,
+                      beam_angles, self.max_range, settings, new_poses, increments, matched)
         self.poses = new_poses
         t1 = time.perf_counter()
         phases["scan_matching"] = t1 - t0
