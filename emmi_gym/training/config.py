@@ -14,6 +14,7 @@ variants of one agent are one line each. Every mistake raises
 from __future__ import annotations
 
 import inspect
+import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -88,7 +89,7 @@ class AgentConfig:
     policy: str = "MultiInputPolicy"
     hyperparameters: dict = field(default_factory=dict)
     discount_unit: int | None = None
-    n_envs: int = 2
+    n_envs: int = field(default_factory=lambda: default_n_envs())
     vec_env: str = "subproc"
     total_timesteps: int = 20_000
     seed: int = 0
@@ -150,6 +151,11 @@ _ACTION_SPACES = {"PPO": ("Discrete", "Box"), "A2C": ("Discrete", "Box"), "Maska
                   "DQN": ("Discrete",), "SAC": ("Box",)}
 _OBSERVATION_SPACES = {"MultiInputPolicy": "Dict", "TargetScoringPolicy": "Dict", "CnnPolicy": "Box",
                        "MlpPolicy": "Box"}
+
+
+def default_n_envs() -> int:
+    """Envs when a configuration gives none: one per core (each env's worker keeps a core busy)."""
+    return max(1, min(os.cpu_count() or 1, MAX_ENVS))
 
 
 def _hyperparameter_check(name: str, default) -> Check | None:
@@ -241,7 +247,7 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
     config = AgentConfig(
         env_id=env_id, env_kwargs=dict(kwargs), algorithm=algorithm, policy=policy, hyperparameters=hyper,
         discount_unit=discount_unit, n_envs=field("n_envs", Integer(1, MAX_ENVS, "each env is a process with its "
-                                                                    "own filter, 100-300 MB"), 2),
+                                                                    "own filter, 100-300 MB"), default_n_envs()),
         vec_env=field("vec_env", Choice(VEC_ENVS), "subproc"), total_timesteps=field("total_timesteps", _STEPS, 20_000),
         seed=field("seed", Integer(0, 2**32 - 1), 0), eval=eval_schedule,
         checkpoint_freq=field("checkpoint_freq", _STEPS, 5000), source=source)
