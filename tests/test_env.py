@@ -335,20 +335,20 @@ def test_the_laser_is_simulated_only_when_the_filter_will_use_it():
 
 
 def test_targets_near_a_blocked_attempt_are_not_offered_again():
-    from emmi_gym.env.candidates import BLOCKED_RADIUS, candidate_slots
+    from emmi_gym.navigation.candidates import BLOCKED_RADIUS, candidate_slots
 
     env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
     env.reset(seed=0)
     core = env.unwrapped
     first = next(t for t in core.targets if t is not None)
-    slots = candidate_slots(core._expected, core.slam.paths[core.slam.best], core._costs, 6, 2,
+    slots = candidate_slots(core._expected, core.slam.paths[core.slam.best], core._navigation.costs, 6, 2,
                             blocked=[(first.x, first.y)])
     assert all(t is None or np.hypot(t.x - first.x, t.y - first.y) > BLOCKED_RADIUS for t in slots)
     assert sum(t is not None for t in slots) >= 1
 
 
 def test_a_wall_seen_on_the_way_makes_the_robot_replan():
-    from emmi_gym.env.planner import path_obstructed, travel_costs
+    from emmi_gym.navigation.planner import path_obstructed, travel_costs
     from emmi_gym.grid import GridGeometry
 
     geometry = GridGeometry(0.1, 0.0, 0.0, 60, 100)      # 10 m x 6 m, all known free
@@ -393,7 +393,7 @@ def test_an_undrivable_route_ends_reset_with_an_error_not_a_hang():
 
 
 def test_obstruction_checks_look_only_as_far_as_the_laser():
-    from emmi_gym.env.planner import path_obstructed
+    from emmi_gym.navigation.planner import path_obstructed
     from emmi_gym.grid import GridGeometry
 
     geometry = GridGeometry(0.1, 0.0, 0.0, 20, 200)

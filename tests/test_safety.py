@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from emmi_gym.safety import MARGIN, _closest_approach, safe_command, scan_points
+from emmi_gym.navigation.safety import MARGIN, _closest_approach, safe_command, scan_points
 
 RADIUS, VMAX, WMAX = 0.2, 0.6, 1.5
 ANGLES = np.linspace(-np.pi, np.pi, 360, endpoint=False)

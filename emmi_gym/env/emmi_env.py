@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import math
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .. import certainty, safety
-from ..control import WaypointFollower
+from .. import certainty
 from ..evaluation import absolute_trajectory_error, map_accuracy
 from ..grid import GridGeometry
+from ..navigation.candidates import Target
+from ..navigation.executor import Limits, MacroActionExecutor
+from ..navigation.follower import WaypointFollower
 from ..slam import RBPF
 from ..slam.occupancy import ParticleMaps
 from ..world import (
@@ -22,9 +23,7 @@ from ..world import (
     rasterise,
 )
 from . import observation as obs
-from .candidates import Target, candidate_slots
 from .config import EnvConfig, make_config
-from .planner import BLOCKING_P, KEEP_OUT_MARGIN, RECOVERY_BLOCKING_P, path_obstructed, travel_costs
 from .rendering import HumanWindow, render_frame
 from .rewards import Snapshot, reward_components, total_reward
 
@@ -33,20 +32,9 @@ DISCRETE_VELOCITIES = ((0.0, 0.0), (1.0, 0.0), (0.3, 1.0), (0.3, -1.0), (-0.5, 0
 #: Simulator steps (15 s) an invalid (masked) waypoint action stands still for: doing nothing
 #: through the default 60 decisions costs 9000 steps of time, about what it costs in velocity mode.
 STAY_STEPS = 150
-#: Consecutive steps driving into a wall, or held back by the safety layer, after which a
-#: macro-action replans (with the scan's obstacles), and after which it counts as blocked.
-REPLAN_STALLED_STEPS = 5
-BLOCKED_STEPS = 15
-#: Steps (30 s) in which the path left to a target must shrink by PROGRESS_M, else the target
-#: counts as blocked: replanning round a passage that the scan shows shut only when near can
-#: swing between two routes for ever (move_base's oscillation timeout).
-NO_PROGRESS_STEPS = 300
-PROGRESS_M = 0.5
 #: Simulator steps (60 s) added to the time a route takes at full speed, in the bound on driving it.
 ROUTE_SLACK_STEPS = 600
-#: Scan echoes closer than this (m) are obstacles for replanning, with this occupancy probability.
-SCAN_LAYER_RANGE = 3.0
-SCAN_LAYER_P = 0.9
+
 
 
 class EmmiEnv(gym.Env):
@@ -156,6 +144,9 @@ class EmmiEnv(gym.Env):
         self.world = world
         self.sim = Simulator(world, self.robot_config, self.laser_config, self.odometry_config)
         self.geometry = GridGeometry.covering(*world.bounds, self.config.resolution)
+        limits = Limits(self.robot_config.radius, self.robot_config.max_speed, self.robot_config.max_turn_rate,
+                        self._angles, self.laser_config.max_range)
+        self._navigation = MacroActionExecutor(self.geometry, limits, self.config.macro_timeout)
         self.truth = rasterise(world, self.config.resolution, self.geometry)
         self._reachable = self.truth.reachable
         self._n_reachable = max(1, int(self._reachable.sum()))
@@ -197,7 +188,7 @@ class EmmiEnv(gym.Env):
         if not 0 <= action < self.config.n_actions:
             raise ValueError(f"action {action} is outside Discrete({self.config.n_actions})")
         target: Target | None = self._slots[action]
-        outcome = self._follow(target) if target is not None else "stayed"
+        outcome = self._navigation.follow(_EnvRobot(self), target) if target is not None else "stayed"
         if outcome == "blocked":  # never offer it again this episode
             self._blocked.append((target.x, target.y))
             self._stale = True
@@ -205,90 +196,11 @@ class EmmiEnv(gym.Env):
             for _ in range(STAY_STEPS):
                 self._sim_step(0.0, 0.0)
 
-    def _follow(self, target: Target) -> str:
-        """Plan to ``target`` on the expected map and follow the path with the estimated pose.
-
-        After every filter update the rest of the path is checked against the new
-        expected map and replanned if a wall now lies on it (as move_base replans); every
-        command passes the safety layer on the live scan first. Returns "stayed" if not a
-        single step was taken, "blocked" if for ``BLOCKED_STEPS`` steps it drove into a wall
-        or the safety layer would not let it drive on, the target became unreachable, or the
-        path left to it did not shrink by ``PROGRESS_M`` in ``NO_PROGRESS_STEPS`` steps,
-        else "moved".
-        """
-        follower = self._follower(self._costs.path_to(target.x, target.y))
-        planned_at = self.slam.step
-        colliding = taken = since_progress = 0
-        shortest = math.inf
-        for _ in range(self.config.macro_timeout):
-            pose = self.slam.pose_estimate(self.sim.odometry_pose)
-            if self.slam.step != planned_at or colliding == REPLAN_STALLED_STEPS:
-                planned_at = self.slam.step
-                follower = self._replanned(follower, pose, target)
-                if follower is None:
-                    return "blocked"
-            left = follower.remaining_length(pose)
-            if left < shortest - PROGRESS_M:
-                shortest, since_progress = left, 0
-            elif since_progress >= NO_PROGRESS_STEPS:
-                return "blocked"
-            since_progress += 1
-            v, omega = follower.command(pose)
-            if follower.done or self.sim_steps >= self.config.max_sim_steps:
-                break
-            safe_v, safe_omega = self._guarded(v, omega)
-            collided = self._sim_step(safe_v, safe_omega)
-            taken += 1
-            stalled = collided or (v > 0.0 and safe_v <= 0.0)
-            colliding = colliding + 1 if stalled else 0
-            if colliding >= BLOCKED_STEPS:
-                return "blocked"
-        return "moved" if taken else "stayed"
-
-    def _guarded(self, v: float, omega: float) -> tuple[float, float]:
-        """(v, omega) made safe against the current laser scan (:mod:`emmi_gym.safety`)."""
-        points = safety.scan_points(self._scan_now(), self._angles, self.laser_config.max_range,
-                                    within=self.robot_config.max_speed * safety.HORIZON + 1.0)
-        return safety.safe_command(v, omega, points, self.robot_config.radius, self.robot_config.max_speed,
-                                   self.robot_config.max_turn_rate)
-
     def _scan_now(self) -> np.ndarray:
         """The laser scan at the current simulator time, cast once and shared by the safety layer and the filter."""
         if self._scan_cache is None or self._scan_cache[0] != self.sim.time:
             self._scan_cache = (self.sim.time, self.sim.scan())
         return self._scan_cache[1]
-
-    def _follower(self, waypoints) -> WaypointFollower:
-        return WaypointFollower(waypoints, self.robot_config.max_speed, self.robot_config.max_turn_rate,
-                                tolerance=0.3)
-
-    def _replanned(self, follower: WaypointFollower, pose, target: Target) -> WaypointFollower | None:
-        """``follower`` if the rest of its path is still clear, else one on a new path to ``target`` (None
-        if it cannot be reached any more). Clear on the current expected map plus the current scan's
-        echoes within ``SCAN_LAYER_RANGE`` (a costmap's obstacle layer: walls seen only at grazing angles
-        are faint in the map but plain in the scan)."""
-        expected = self._with_scan_layer(self.slam.expected_map(), pose)
-        radius = self.robot_config.radius
-        if not path_obstructed(expected, self.geometry, [tuple(pose[:2])] + follower.remaining, radius,
-                               skip=radius + KEEP_OUT_MARGIN, horizon=self.laser_config.max_range,
-                               blocking_p=self._blocking_p):
-            return follower
-        costs = travel_costs(expected, self.geometry, pose[:2], radius, goal_xy=(target.x, target.y),
-                             blocking_p=self._blocking_p)
-        if not np.isfinite(costs.cost_to(target.x, target.y)):
-            return None
-        return self._follower(costs.path_to(target.x, target.y))
-
-    def _with_scan_layer(self, expected: np.ndarray, pose) -> np.ndarray:
-        """``expected`` (changed in place) with the current scan's echoes within ``SCAN_LAYER_RANGE``
-        marked as obstacles (``SCAN_LAYER_P``) at ``pose``: a costmap's obstacle layer over the map."""
-        points = safety.scan_points(self._scan_now(), self._angles, self.laser_config.max_range, SCAN_LAYER_RANGE)
-        cos, sin = np.cos(pose[2]), np.sin(pose[2])
-        rows, cols = self.geometry.cell_of(pose[0] + cos * points[:, 0] - sin * points[:, 1],
-                                           pose[1] + sin * points[:, 0] + cos * points[:, 1])
-        inside = self.geometry.inside(rows, cols)
-        expected[rows[inside], cols[inside]] = np.maximum(expected[rows[inside], cols[inside]], SCAN_LAYER_P)
-        return expected
 
     def _sim_step(self, v: float, omega: float) -> bool:
         result = self.sim.step(v, omega)
@@ -328,17 +240,8 @@ class EmmiEnv(gym.Env):
         self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
                                               align=False)
         if self.config.action_mode == "waypoint":
-            # targets are planned on the expected map plus the scan's obstacle layer, as the drive to them
-            # is replanned: a wall the particles blur but the laser sees hides no frontier behind it
-            pose = self.slam.pose_estimate(self.sim.odometry_pose)
-            planning_map = self._with_scan_layer(self._expected.copy(), pose)
-            for self._blocking_p in (BLOCKING_P, RECOVERY_BLOCKING_P):  # the recovery if nothing is reachable
-                self._costs = travel_costs(planning_map, self.geometry, pose[:2], self.robot_config.radius,
-                                           blocking_p=self._blocking_p)
-                self._slots = candidate_slots(planning_map, self.slam.paths[self.slam.best], self._costs,
-                                              self.config.n_frontiers, self.config.n_revisits, self._blocked)
-                if any(slot is not None for slot in self._slots):
-                    break
+            self._slots = self._navigation.targets(_EnvRobot(self), self._expected, self.slam.paths[self.slam.best],
+                                                   self.config.n_frontiers, self.config.n_revisits, self._blocked)
             self._loop_spreads = [certainty.loop_displacement_spread(self.slam.paths, self.slam.log_weights,
                                                                      t.path_index, log_weights=True)
                                   if t is not None and t.kind == "revisit" else 0.0 for t in self._slots]
@@ -432,3 +335,29 @@ class EmmiEnv(gym.Env):
         if self._window is not None:
             self._window.close()
             self._window = None
+
+
+class _EnvRobot:
+    """The env as the :class:`~emmi_gym.navigation.executor.Robot` a macro-action drives."""
+
+    def __init__(self, env: EmmiEnv):
+        self.env = env
+
+    @property
+    def filter_step(self) -> int:
+        return self.env.slam.step
+
+    def pose_estimate(self) -> np.ndarray:
+        return self.env.slam.pose_estimate(self.env.sim.odometry_pose)
+
+    def scan(self) -> np.ndarray:
+        return self.env._scan_now()
+
+    def expected_map(self) -> np.ndarray:
+        return self.env.slam.expected_map()
+
+    def step(self, v: float, omega: float) -> bool:
+        return self.env._sim_step(v, omega)
+
+    def out_of_time(self) -> bool:
+        return self.env.sim_steps >= self.env.config.max_sim_steps

@@ -8,7 +8,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ..grid import GridGeometry
-from .planner import FREE_P, OCCUPIED_P
+from ..navigation.planner import FREE_P, OCCUPIED_P
 
 UNKNOWN_PIXEL = 127
 PATH_PIXEL = 128

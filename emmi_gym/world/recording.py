@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import carmen
-from ..control import WaypointFollower
+from ..navigation.follower import WaypointFollower
 from .simulator import Simulator
 
 
