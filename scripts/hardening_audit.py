@@ -198,10 +198,13 @@ def training_interrupts(folder: Path) -> list[tuple[str, str, float]]:
     for label, group in (("Ctrl-C during train (the process group gets SIGINT)", True),
                          ("kill -INT of the main training process only", False)):
         run = folder / f"run_{group}"
-        process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", str(folder / "train.yaml"),
-                                    "--out", str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                   text=True, start_new_session=True,
-                                   preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # not inherited as ignored
+        try:
+            process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", str(folder / "train.yaml"),
+                                        "--out", str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                       text=True, start_new_session=True)
+        finally:
+            signal.signal(signal.SIGINT, previous)
         while not list((run / "checkpoints").glob("model_*_steps.zip")) and process.poll() is None:
             time.sleep(0.2)
         sent = time.perf_counter()
