@@ -2,6 +2,7 @@
 
 import copy
 import math
+from pathlib import Path
 
 import numpy as np
 import pymunk
@@ -18,6 +19,8 @@ from emmi_gym.motion import compose_motion, relative_motion
 from emmi_gym.world.odometry import OdometryNoise, noisy_motion
 from emmi_gym.world.simulator import RobotConfig, Simulator
 from emmi_gym.world.spec import ROBOT_RADIUS, WorldFileError
+
+PLANS = Path(__file__).resolve().parents[1] / "emmi_gym" / "worlds_data" / "dungeon_maps"
 
 BOX = {
     "name": "box",
@@ -226,8 +229,9 @@ def _pymunk_ranges(sim, pose, config):
     return np.array(ranges)
 
 
-def test_laser_kernel_matches_pymunk_segment_queries():
-    world = load_world("loop_corridor")
+@pytest.mark.parametrize("world_name", ["loop_corridor", "dungeon_maps/test/img_10011.png"])
+def test_laser_kernel_matches_pymunk_segment_queries(world_name):
+    world = load_world(PLANS / world_name.split("/", 1)[1] if world_name.endswith(".png") else world_name)
     config = LaserConfig(n_beams=360)
     sim = Simulator(world, laser=config)
     sim.shape.filter = pymunk.ShapeFilter(categories=1)

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from ..slam.config import MAX_PARTICLES, MIN_RESOLUTION, RBPFConfig
 from ..validation import Boolean, Choice, Integer, Mapping, Maybe, Real, Text, build, check_fields, fail, option
 from ..world import GeneratorConfig, LaserConfig, OdometryNoise
+from ..world.images import DEFAULT_PIXEL_SIZE, PIXEL_SIZE
 
 REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage")
 ACTION_MODES = ("waypoint", "velocity")
@@ -27,8 +28,11 @@ REWARD_SCALES = {"emmi": 10.0, "pose_entropy": 0.1, "joint_entropy": 1e-3, "cove
 class EnvConfig:
     """Options of :class:`~emmi_gym.env.EmmiEnv`; ``gym.make(id, **options)`` sets any of them.
 
-    - ``world``: built-in name or .yaml path; ``None`` draws a new generated world at
-      every reset (``generator`` holds :class:`~emmi_gym.world.GeneratorConfig` fields).
+    - ``world``: a built-in name, a world file or map_server map (.yaml), a floor-plan image
+      (.png/.pgm, read at ``pixel_size`` metres per pixel), a map set to draw from at every
+      reset (``"dungeon_maps/train"``, a folder, a glob; :mod:`emmi_gym.world.map_sets`), or
+      ``None``: a new generated world at every reset (``generator`` holds
+      :class:`~emmi_gym.world.GeneratorConfig` fields).
     - ``start_at``: ``"decision"`` drives the world's ``to_decision`` route with the RBPF
       running before the first observation (the paper's robot up to its step 65);
       ``"start"`` begins at the start pose.
@@ -45,6 +49,7 @@ class EnvConfig:
 
     world: str | None = option("loop_corridor", Maybe(Text(), "a generated world per reset"))
     generator: dict = option({}, Mapping())
+    pixel_size: float = option(DEFAULT_PIXEL_SIZE, PIXEL_SIZE)
     start_at: str = option("decision", Choice(STARTS))
     action_mode: str = option("waypoint", Choice(ACTION_MODES))
     velocity_actions: str = option("continuous", Choice(VELOCITY_ACTIONS))

@@ -15,13 +15,8 @@ from ..navigation.executor import Limits, MacroActionExecutor
 from ..navigation.follower import WaypointFollower
 from ..slam import RBPF
 from ..slam.occupancy import ParticleMaps
-from ..world import (
-    RobotConfig,
-    Simulator,
-    generate_world,
-    load_world,
-    rasterise,
-)
+from ..world import RobotConfig, Simulator, rasterise
+from ..world.map_sets import WorldSource
 from . import observation as obs
 from .config import EnvConfig, make_config
 from .rendering import HumanWindow, render_frame
@@ -67,7 +62,10 @@ class EmmiEnv(gym.Env):
         self.odometry_config = cfg.odometry_config()
         self.slam_config = cfg.slam_config()
         self.generator_config = cfg.generator_config()
-        self._fixed_world = load_world(cfg.world) if cfg.world is not None else None
+        self._worlds = WorldSource(cfg.world, self.generator_config, cfg.pixel_size)
+        self._fixed_world = self._worlds.fixed
+        if self._worlds.files is not None and cfg.start_at == "decision":
+            raise ValueError(f"the map set {cfg.world!r} has no 'to_decision' routes: use start_at='start'")
         if self._fixed_world is not None and cfg.start_at == "decision" and "to_decision" not in self._fixed_world.routes:
             raise ValueError(f"start_at='decision' needs a 'to_decision' route; world '{self._fixed_world.name}' "
                              f"has {sorted(self._fixed_world.routes)}: use start_at='start'")
@@ -98,7 +96,7 @@ class EmmiEnv(gym.Env):
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; valid: ['start_at']")
         rng = self.np_random
-        world = self._fixed_world or generate_world(rng, self.generator_config)
+        world = self._worlds.draw(rng)
         if world is not self.world:
             self._set_world(world)
         self.sim.reset(rng)

@@ -34,20 +34,32 @@ def cast_rays(ox, oy, angles, max_range, capsules, out):
 
     ``capsules`` is (K, 5): ax, ay, bx, by, radius. A capsule is the set of points
     within ``radius`` of segment ab: its two end circles and its two side lines.
+    The capsules are first sorted by a lower bound of their distance from the origin
+    (centre distance less half the length and the radius), dropping those beyond
+    ``max_range``; a beam then stops at the first capsule whose bound exceeds its best hit,
+    so a scan costs what lies near the robot, not the whole world's walls.
     """
-    n = angles.size
-    for k in range(n):
+    k_all = capsules.shape[0]
+    bound = np.empty(k_all)
+    for w in range(k_all):
+        ax, ay, bx, by, r = capsules[w, 0], capsules[w, 1], capsules[w, 2], capsules[w, 3], capsules[w, 4]
+        mx, my = 0.5 * (ax + bx) - ox, 0.5 * (ay + by) - oy
+        bound[w] = math.sqrt(mx * mx + my * my) - 0.5 * math.sqrt((bx - ax) ** 2 + (by - ay) ** 2) - r
+    order = np.argsort(bound)
+    n_near = 0
+    while n_near < k_all and bound[order[n_near]] <= max_range:
+        n_near += 1
+    for k in range(angles.size):
         dx = math.cos(angles[k])
         dy = math.sin(angles[k])
         best = max_range
-        for w in range(capsules.shape[0]):
+        for i in range(n_near):
+            w = order[i]
+            if bound[w] > best:
+                break
             ax, ay, bx, by, r = capsules[w, 0], capsules[w, 1], capsules[w, 2], capsules[w, 3], capsules[w, 4]
-            # cheap reject: the segment's distance band does not meet the ray's reach
             ex, ey = bx - ax, by - ay
             length = math.sqrt(ex * ex + ey * ey)
-            mx, my = 0.5 * (ax + bx) - ox, 0.5 * (ay + by) - oy
-            if math.sqrt(mx * mx + my * my) - 0.5 * length - r > best:
-                continue
             t = _ray_circle(ox, oy, dx, dy, ax, ay, r)
             if t < best:
                 best = t

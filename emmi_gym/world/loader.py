@@ -30,6 +30,8 @@ import numpy as np
 from ..errors import excerpt
 from ..validation import Invalid, Real
 from ..yaml_files import YAML_SUFFIXES, parse_yaml, read_yaml_file
+from .images import (DEFAULT_PIXEL_SIZE, IMAGE_SUFFIXES, dungeon_occupancy, is_map_server_file,
+                     map_server_occupancy, world_from_occupancy)
 from .spec import ROBOT_RADIUS, Place, WorldFileError, WorldSpec, point_segment_distance
 
 _TOP_KEYS = {"name", "description", "bounds", "wall_thickness", "walls", "start", "places", "routes"}
@@ -61,14 +63,22 @@ def builtin_worlds() -> list[str]:
     return sorted(Path(f.name).stem for f in files if f.name.endswith(".yaml"))
 
 
-def load_world(name_or_path) -> WorldSpec:
-    """Load a built-in world by name (``"loop_corridor"``) or a world file (``.yaml``) by path."""
+def load_world(name_or_path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> WorldSpec:
+    """Load a world: a built-in name (``"loop_corridor"``), a world file (``.yaml``), a ROS map_server
+    map (its ``.yaml``) or a floor-plan image (``.png``/``.pgm``, DungeonMaps colour rules,
+    ``pixel_size`` metres per pixel); see :mod:`emmi_gym.world.images`."""
     name = str(name_or_path)
     path = Path(name)
+    if path.suffix.lower() in IMAGE_SUFFIXES:
+        return world_from_occupancy(dungeon_occupancy(path, pixel_size))
     if path.suffix.lower() in YAML_SUFFIXES or path.exists():
-        return parse_world(read_yaml_file(path, "world file", WorldFileError), source=str(path))
+        data = read_yaml_file(path, "world file", WorldFileError)
+        if is_map_server_file(data):
+            return world_from_occupancy(map_server_occupancy(path, data))
+        return parse_world(data, source=str(path))
     if name not in builtin_worlds():
-        raise ValueError(f"unknown world {excerpt(name)}: give a path to a .yaml file or one of {builtin_worlds()}")
+        raise ValueError(f"unknown world {excerpt(name)}: give a path to a world file or map_server map (.yaml), "
+                         f"an image ({'/'.join(IMAGE_SUFFIXES)}) or one of {builtin_worlds()}")
     text = resources.files("emmi_gym.worlds_data").joinpath(f"{name}.yaml").read_text()
     return parse_world(parse_yaml(text, f"{name}.yaml", WorldFileError), source=f"{name}.yaml")
 

@@ -1,0 +1,202 @@
+"""Worlds from occupancy images: ROS map_server maps and plain floor-plan images (DungeonMaps).
+
+An image becomes a :class:`WorldSpec` in three steps:
+
+1. **Classify the pixels** free / not free, and find the start. A map_server map follows
+   ROS's ``map_server`` rules (trinary mode): a pixel's occupancy is ``p = (255 - v) / 255``
+   (``v / 255`` with ``negate: 1``; colour channels averaged), free below ``free_thresh``,
+   occupied above ``occupied_thresh``, unknown between; unknown counts as not free. A plain
+   image follows the DungeonMaps colour rules: light pixels (grey level >= 160) are free, dark
+   ones obstacles, and the yellow square (RGB: red and green high, blue low; in a grey image the
+   level 208 that yellow becomes) is the start.
+2. **Keep the free space reachable from the start** (4-connected); everything else is obstacle,
+   so closed-off pockets neither get walls nor count as area to explore.
+3. **Trace its boundary** with scikit-image's marching squares (``find_contours`` at level 0.5,
+   on pixel edges) and simplify each contour with Douglas-Peucker (``approximate_polygon``,
+   tolerance :data:`CONTOUR_TOLERANCE` pixels): the walls are a few thin segments along the
+   boundary (half a pixel thick), not a shape per pixel.
+
+Without a start (a map_server map gives none unless its YAML adds ``start: [x, y, theta]``, an
+image without yellow), the robot starts at the free pixel farthest from any obstacle.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+from scipy import ndimage
+from skimage.measure import approximate_polygon, find_contours
+
+from ..validation import Choice, Integer, Maybe, Real, Text, Tuple, build, check_fields, check_value, fail, option
+from ..yaml_files import read_yaml_file
+from .spec import ROBOT_RADIUS, Place, WorldFileError, WorldSpec
+
+IMAGE_SUFFIXES = (".png", ".pgm")
+#: Metres per pixel of a plain image unless the user gives ``pixel_size`` (DungeonMaps' corridors,
+#: 32 px, become 3.2 m; a 640 x 480 plan 64 x 48 m).
+DEFAULT_PIXEL_SIZE = 0.1
+#: The largest image read (pixels): a 2 km world at 0.1 m, checked from the header before decoding.
+MAX_IMAGE_PIXELS = 20_000 * 20_000
+#: Douglas-Peucker tolerance of the traced walls, pixels (the walls stay within it of the boundary).
+CONTOUR_TOLERANCE = 0.75
+#: DungeonMaps colour rules: grey level (ITU-R 601 luma) from which a pixel is free; the grey level of the
+#: start square in a grey image (skimage's luma of yellow), with its tolerance.
+FREE_LEVEL = 160
+START_GREY, START_GREY_TOLERANCE = 208, 3
+PIXEL_SIZE = Real(0.005, 5.0, unit="m per pixel")
+
+
+@dataclass(frozen=True)
+class OccupancyImage:
+    """Free pixels of a map image in the world frame: ``free[row, col]``, row 0 at the bottom (y up),
+    pixel (r, c) covers ``[x0 + c*res, x0 + (c+1)*res) x [y0 + r*res, ...)``; ``start`` in metres or None."""
+
+    free: np.ndarray
+    resolution: float
+    origin: tuple[float, float]
+    start: Place | None
+    name: str
+    source: str
+
+
+@dataclass(frozen=True)
+class MapServerFile:
+    """The fields of a ROS map_server YAML file (plus emmi-gym's optional ``start`` and ``name``)."""
+
+    image: str = option(None, Text())
+    resolution: float = option(None, Real(0.005, 5.0, unit="m per pixel"))
+    origin: tuple = option(None, Tuple(Real(-1e4, 1e4, unit="m"), 3))
+    negate: int = option(0, Integer(0, 1))
+    occupied_thresh: float = option(0.65, Real(0.0, 1.0))
+    free_thresh: float = option(0.196, Real(0.0, 1.0))
+    mode: str = option("trinary", Choice(("trinary", "scale")))
+    start: tuple | None = option(None, Maybe(Tuple(Real(-1e4, 1e4), 3), "the free pixel farthest from obstacles"))
+    name: str | None = option(None, Maybe(Text(), "the file's name"))
+
+    def __post_init__(self):
+        check_fields(self)
+        for key in ("image", "resolution", "origin"):
+            if getattr(self, key) is None:
+                fail(self, key, "a value (the field is required)")
+        if self.free_thresh >= self.occupied_thresh:
+            fail(self, "free_thresh", f"a threshold below occupied_thresh = {self.occupied_thresh}", self.free_thresh)
+        if self.origin[2] != 0.0:
+            fail(self, "origin", "a yaw of 0 (rotated maps are not supported; most of ROS ignores the yaw too)",
+                 list(self.origin))
+
+
+def is_map_server_file(data) -> bool:
+    """Whether YAML data is a map_server map (it names an ``image``) rather than a world file."""
+    return isinstance(data, dict) and "image" in data
+
+
+def read_pixels(path: Path) -> Image.Image:
+    """Open an image, with clear errors for what is not one or is too large (checked before decoding)."""
+    if not path.is_file():
+        raise FileNotFoundError(f"map image {path} does not exist")
+    try:
+        image = Image.open(path)
+        width, height = image.size
+        if width * height > MAX_IMAGE_PIXELS:
+            raise WorldFileError(str(path), "", f"an image of at most {MAX_IMAGE_PIXELS:,} pixels",
+                                 f"{width} x {height}")
+        image.load()
+    except (UnidentifiedImageError, OSError, Image.DecompressionBombError) as exc:
+        raise WorldFileError(str(path), "", "a PNG or PGM image", type(exc).__name__) from None
+    return image
+
+
+def dungeon_occupancy(path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> OccupancyImage:
+    """A plain floor-plan image read with the DungeonMaps colour rules, ``pixel_size`` metres per pixel,
+    its lower-left corner at (0, 0)."""
+    path = Path(path)
+    pixel_size = check_value(pixel_size, PIXEL_SIZE, "load_world", "pixel_size", WorldFileError)
+    rgb = np.asarray(read_pixels(path).convert("RGB"), dtype=np.int16)
+    grey = (rgb @ np.array([299, 587, 114])) // 1000  # ITU-R 601 luma, as Pillow's "L"
+    if np.any(rgb[..., 0] != rgb[..., 2]):  # a colour image: the start square is yellow
+        start_mask = (rgb[..., 0] > 200) & (rgb[..., 1] > 150) & (rgb[..., 2] < 100)
+    else:  # a grey image: yellow became START_GREY
+        start_mask = np.abs(grey - START_GREY) <= START_GREY_TOLERANCE
+    free = np.flipud(grey >= FREE_LEVEL) | np.flipud(start_mask)
+    start = None
+    if start_mask.any():
+        rows, cols = np.nonzero(np.flipud(start_mask))
+        start = Place(float((cols.mean() + 0.5) * pixel_size), float((rows.mean() + 0.5) * pixel_size), 0.0)
+    return OccupancyImage(free, pixel_size, (0.0, 0.0), start, path.stem, str(path))
+
+
+def map_server_occupancy(path, data: dict | None = None) -> OccupancyImage:
+    """A ROS map_server map (its YAML file and the image it names), classified by map_server's rules."""
+    path = Path(path)
+    if data is None:
+        data = read_yaml_file(path, "map_server map", WorldFileError)
+    spec = build(MapServerFile, data, "", source=str(path), error=WorldFileError)
+    image_path = Path(spec.image) if Path(spec.image).is_absolute() else path.parent / spec.image
+    if image_path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise WorldFileError(str(path), "image", f"a PNG or PGM image (*{' or *'.join(IMAGE_SUFFIXES)})", spec.image)
+    if not image_path.is_file():
+        raise WorldFileError(str(path), "image", f"an image file beside the YAML file; {image_path} does not exist",
+                             spec.image)
+    image = read_pixels(image_path)
+    values = np.asarray(image.convert("RGB"), dtype=np.float64).mean(axis=2)
+    occupancy = values / 255.0 if spec.negate else (255.0 - values) / 255.0
+    free = np.flipud(occupancy < spec.free_thresh)
+    start = Place(*spec.start) if spec.start is not None else None
+    return OccupancyImage(free, spec.resolution, (spec.origin[0], spec.origin[1]), start, spec.name or path.stem,
+                          str(path))
+
+
+def world_from_occupancy(occupancy: OccupancyImage) -> WorldSpec:
+    """The world of an occupancy image: walls along the boundary of the free space reachable from the start."""
+    free, res, (x0, y0) = occupancy.free, occupancy.resolution, occupancy.origin
+    source = occupancy.source
+    rows, cols = free.shape
+    if max(rows, cols) * res > 2000.0:
+        raise WorldFileError(source, "", "a world at most 2000 m across (its ground truth and every particle's map "
+                             f"cover it), here {cols * res:g} x {rows * res:g} m")
+    if not free.any():
+        raise WorldFileError(source, "", "an image with free space (none of its pixels reads as free)")
+    start = occupancy.start or _roomiest_point(free, res, x0, y0)
+    r, c = int(math.floor((start.y - y0) / res)), int(math.floor((start.x - x0) / res))
+    if not (0 <= r < rows and 0 <= c < cols):
+        raise WorldFileError(source, "start", f"a point inside the map [{x0:g}, {x0 + cols * res:g}] x "
+                             f"[{y0:g}, {y0 + rows * res:g}]", [start.x, start.y])
+    if not free[r, c]:
+        raise WorldFileError(source, "start", f"a point in free space; pixel (row {rows - 1 - r}, column {c} from "
+                             "the top left) is an obstacle", [start.x, start.y])
+    labels, _ = ndimage.label(free)
+    reachable = labels == labels[r, c]
+    walls = boundary_walls(reachable, res, x0, y0)
+    spec = WorldSpec(name=occupancy.name, bounds=(x0, y0, x0 + cols * res, y0 + rows * res), walls=walls,
+                     start=start, places={"start": start}, source=source,
+                     description=f"from the occupancy image {Path(source).name}: {cols} x {rows} pixels of {res:g} m")
+    if spec.clearance(start.x, start.y) < ROBOT_RADIUS:
+        raise WorldFileError(source, "start", f"a point where the robot (radius {ROBOT_RADIUS} m) fits clear of "
+                             f"the walls; it is {max(0.0, spec.clearance(start.x, start.y)):.2f} m from one",
+                             [round(start.x, 3), round(start.y, 3)])
+    return spec
+
+
+def boundary_walls(region: np.ndarray, res: float, x0: float, y0: float) -> np.ndarray:
+    """(K, 5) thin wall segments along the boundary of a boolean region (rows = y up), simplified."""
+    padded = np.pad(region, 1).astype(np.float64)
+    thickness = float(np.clip(res / 2, 0.01, 5.0))
+    rows = []
+    for contour in find_contours(padded, 0.5):
+        polygon = approximate_polygon(contour, CONTOUR_TOLERANCE)
+        xy = np.column_stack([x0 + (polygon[:, 1] - 0.5) * res, y0 + (polygon[:, 0] - 0.5) * res])
+        a, b = xy[:-1], xy[1:]
+        keep = np.hypot(*(b - a).T) > 1e-9
+        rows.append(np.column_stack([a[keep], b[keep], np.full(int(keep.sum()), thickness)]))
+    return np.concatenate(rows) if rows else np.zeros((0, 5))
+
+
+def _roomiest_point(free: np.ndarray, res: float, x0: float, y0: float) -> Place:
+    """The centre of the free pixel farthest from any non-free pixel (the default start)."""
+    distance = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
+    r, c = np.unravel_index(int(np.argmax(distance)), distance.shape)
+    return Place(float(x0 + (c + 0.5) * res), float(y0 + (r + 0.5) * res), 0.0)
