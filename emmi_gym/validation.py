@@ -138,6 +138,23 @@ class Mapping(Check):
 
 
 @dataclass(frozen=True)
+class Preset(Check):
+    """A preset's name (one of ``names``) or a dict of nested options (checked by whoever builds from it)."""
+
+    names: tuple
+
+    def describe(self) -> str:
+        return f"a preset name (one of {list(self.names)}) or a mapping of options"
+
+    def __call__(self, value):
+        if isinstance(value, dict):
+            return dict(value)
+        if not isinstance(value, str) or value not in self.names:
+            raise Invalid(self.describe())
+        return value
+
+
+@dataclass(frozen=True)
 class Maybe(Check):
     """``None`` or what ``inner`` accepts."""
 
@@ -230,5 +247,5 @@ def _join(label: str, name: str) -> str:
     return f"{label}.{name}" if label else name
 
 
-__all__ = ["MAX_LASER_RANGE", "Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Real", "Text",
+__all__ = ["MAX_LASER_RANGE", "Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Preset", "Real", "Text",
            "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "option"]

@@ -385,9 +385,9 @@ def test_an_undrivable_route_ends_reset_with_an_error_not_a_hang():
     import dataclasses
 
     env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL).unwrapped
-    world = env._fixed_world
+    world = env._worlds.fixed
     # a route the loader would refuse (it ends inside the outer wall), given to the env directly
-    env._fixed_world = dataclasses.replace(world, routes={"to_decision": [world.start.xy, (world.start.x, -5.0)]})
+    env._worlds.fixed = dataclasses.replace(world, routes={"to_decision": [world.start.xy, (world.start.x, -5.0)]})
     with pytest.raises(RuntimeError, match=r"route 'to_decision' \(6\.0 m\) was not driven within 900 simulator steps; the robot is stuck at"):
         env.reset(seed=0)
 

@@ -152,3 +152,15 @@ def test_explore_draws_plans_from_a_set_deterministically():
     assert env.reset(seed=12)[1]["world"] != runs[0][0] or env.reset(seed=13)[1]["world"] != runs[0][0]
     with pytest.raises(ValueError, match="start_at='start'"):
         gym.make("emmi_gym/Explore-v0", world="dungeon_maps/test", start_at="decision")
+
+
+def test_a_half_circle_scanner_finds_the_frontier_behind_it():
+    """With a 180-degree laser the unseen half behind the robot starts at its own position: the frontier's
+    centroid is where the robot stands, so the target is its nearest cell at least a metre away."""
+    env = gym.make("emmi_gym/Explore-v0", world=str(PLAN), laser="sick_lms200")
+    env.reset(seed=0)
+    frontiers = [t for t in env.unwrapped.targets if t is not None and t.kind == "frontier"]
+    assert frontiers and all(t.travel_cost >= 1.0 for t in frontiers)
+    start = env.unwrapped.sim.true_pose
+    env.step(0)
+    assert np.hypot(*(env.unwrapped.sim.true_pose[:2] - start[:2])) > 0.5  # it drove; it did not stand still

@@ -390,3 +390,38 @@ def test_turning_on_the_spot_is_all_rot2():
     assert rot1 == 0.0 and abs(trans) < MIN_TRANSLATION and rot2 == pytest.approx(0.15)
     sd_rot1, _, sd_rot2 = motion_std(rot1, trans, rot2, OdometryNoise().alphas)
     assert sd_rot1 < 1e-6 and sd_rot2 == pytest.approx(np.sqrt(0.02) * 0.15, rel=1e-3)
+
+
+# ------------------------------------------------------------------ presets
+
+
+def test_sensor_presets_follow_the_datasheets_and_take_overrides():
+    from emmi_gym.world.presets import laser_config, odometry_config
+
+    sick = laser_config("sick_lms200")
+    assert (sick.n_beams, sick.max_range) == (181, 30.0)
+    assert math.degrees(sick.fov) == pytest.approx(180) and math.degrees(sick.angular_resolution) == pytest.approx(1)
+    hokuyo = laser_config({"preset": "hokuyo_urg04lx", "max_range": 4.0})
+    assert hokuyo.max_range == 4.0 and math.degrees(hokuyo.angular_resolution) == pytest.approx(0.352, abs=1e-3)
+    assert laser_config("default") == LaserConfig() == laser_config({})
+    assert odometry_config("typical") == OdometryNoise()
+    assert odometry_config("poor").trans_from_trans == 4 * OdometryNoise().trans_from_trans
+    with pytest.raises(ValueError, match=r"laser.preset': expected one of \['default'"):
+        laser_config({"preset": "lms"})
+    with pytest.raises(ValueError, match="odometry_noise': expected a preset name"):
+        odometry_config(3)
+
+
+def test_odometry_presets_drift_in_their_order():
+    """Fast version of scripts/odometry_drift.py --preset all: one loop (74 m), 6 seeds."""
+    from emmi_gym.world.presets import odometry_config
+    from emmi_gym.world.recording import drive_route
+
+    world = load_world("loop_corridor")
+    route = world.route("to_decision") + world.route("close_loop")[1:]
+    medians = {}
+    for preset in ("good", "poor"):
+        sim = Simulator(world, laser=LaserConfig(n_beams=4), odometry=odometry_config(preset))
+        medians[preset] = np.median([np.hypot(*(rec.true_poses[-1, :2] - rec.odometry_poses[-1, :2])) for rec in
+                                     (drive_route(sim, route, np.random.default_rng(s)) for s in range(6))])
+    assert medians["good"] < 1.5 < 2.5 < medians["poor"]

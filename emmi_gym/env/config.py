@@ -5,8 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..slam.config import MAX_PARTICLES, MIN_RESOLUTION, RBPFConfig
-from ..validation import Boolean, Choice, Integer, Mapping, Maybe, Real, Text, build, check_fields, fail, option
+from ..validation import (Boolean, Choice, Integer, Mapping, Maybe, Preset, Real, Text, build, check_fields, fail,
+                          option)
 from ..world import GeneratorConfig, LaserConfig, OdometryNoise
+from ..world.presets import LASER_PRESETS, ODOMETRY_PRESETS, laser_config, odometry_config
 from ..world.images import DEFAULT_PIXEL_SIZE, PIXEL_SIZE
 
 REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage")
@@ -39,9 +41,10 @@ class EnvConfig:
     - ``reward``: one of :data:`REWARDS`; all are computed and put in ``info``.
     - ``time_cost`` per simulator step and ``collision_cost`` per colliding step are
       subtracted whatever the reward, so doing nothing never pays.
-    - ``laser``, ``odometry_noise``, ``slam``: dicts of :class:`LaserConfig`,
-      :class:`OdometryNoise` and :class:`RBPFConfig` fields, checked when the config is
-      made; ``particles`` and ``resolution`` set the filter's (not inside ``slam``).
+    - ``laser``, ``odometry_noise``: a preset name (:mod:`emmi_gym.world.presets`:
+      ``"sick_lms200"``, ``"poor"``...) or a dict of :class:`LaserConfig` /
+      :class:`OdometryNoise` fields (with an optional ``preset`` they change); ``slam``: a
+      dict of :class:`RBPFConfig` fields; all checked when the config is made; ``particles`` and ``resolution`` set the filter's (not inside ``slam``).
 
     Every field is typed and bounded (:mod:`emmi_gym.validation`); a mistake raises an
     ``OptionError`` naming the field.
@@ -60,8 +63,8 @@ class EnvConfig:
     coverage_target: float = option(0.9, Real(0.0, 1.0, open_lo=True))
     particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"))
     resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"))
-    laser: dict = option({}, Mapping())
-    odometry_noise: dict = option({}, Mapping())
+    laser: dict | str = option({}, Preset(tuple(LASER_PRESETS)))
+    odometry_noise: dict | str = option({}, Preset(tuple(ODOMETRY_PRESETS)))
     slam: dict = option({}, Mapping())
     observation: str = option("dict", Choice(OBSERVATIONS))
     obs_size: int = option(64, Integer(16, 1024, "the observation holds obs_size^2 pixels per channel"))
@@ -83,10 +86,10 @@ class EnvConfig:
         self.laser_config(), self.odometry_config(), self.slam_config(), self.generator_config()
 
     def laser_config(self) -> LaserConfig:
-        return build(LaserConfig, self.laser, "laser", source=SOURCE)
+        return laser_config(self.laser, "laser", source=SOURCE)
 
     def odometry_config(self) -> OdometryNoise:
-        return build(OdometryNoise, self.odometry_noise, "odometry_noise", source=SOURCE)
+        return odometry_config(self.odometry_noise, "odometry_noise", source=SOURCE)
 
     def slam_config(self) -> RBPFConfig:
         return build(RBPFConfig, dict(self.slam, particles=self.particles, resolution=self.resolution), "slam",

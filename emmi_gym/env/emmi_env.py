@@ -8,9 +8,10 @@ import numpy as np
 from gymnasium import spaces
 
 from .. import certainty
-from ..evaluation import absolute_trajectory_error, map_accuracy
+from ..evaluation import absolute_trajectory_error, map_accuracy, oracle_accuracy, wall_consistency
 from ..grid import GridGeometry
 from ..navigation.candidates import Target
+from ..oracle import OracleMap
 from ..navigation.executor import Limits, MacroActionExecutor
 from ..navigation.follower import WaypointFollower
 from ..slam import RBPF
@@ -63,14 +64,14 @@ class EmmiEnv(gym.Env):
         self.slam_config = cfg.slam_config()
         self.generator_config = cfg.generator_config()
         self._worlds = WorldSource(cfg.world, self.generator_config, cfg.pixel_size)
-        self._fixed_world = self._worlds.fixed
+        fixed = self._worlds.fixed
         if self._worlds.files is not None and cfg.start_at == "decision":
             raise ValueError(f"the map set {cfg.world!r} has no 'to_decision' routes: use start_at='start'")
-        if self._fixed_world is not None and cfg.start_at == "decision" and "to_decision" not in self._fixed_world.routes:
-            raise ValueError(f"start_at='decision' needs a 'to_decision' route; world '{self._fixed_world.name}' "
-                             f"has {sorted(self._fixed_world.routes)}: use start_at='start'")
-        if self._fixed_world is not None:  # refuse maps too large now, not at the first reset
-            grid = GridGeometry.covering(*self._fixed_world.bounds, cfg.resolution)
+        if fixed is not None and cfg.start_at == "decision" and "to_decision" not in fixed.routes:
+            raise ValueError(f"start_at='decision' needs a 'to_decision' route; world '{fixed.name}' "
+                             f"has {sorted(fixed.routes)}: use start_at='start'")
+        if fixed is not None:  # refuse maps too large now, not at the first reset
+            grid = GridGeometry.covering(*fixed.bounds, cfg.resolution)
             ParticleMaps.check_memory(grid.rows, grid.cols, cfg.particles, cfg.resolution)
         if cfg.action_mode == "waypoint":
             self.action_space = spaces.Discrete(cfg.n_actions)
@@ -103,6 +104,7 @@ class EmmiEnv(gym.Env):
         self._scan_cache = None
         self.slam = RBPF(self.slam_config, max_range=self.laser_config.max_range, geometry=self.geometry)
         self.slam.reset(self.sim.odometry_pose, rng)
+        self._oracle = OracleMap(self.slam)
         self.sim_steps = self.collisions = self.decisions = 0
         self._true_at_updates: list[np.ndarray] = []
         self._true_path = [self.sim.true_pose]
@@ -214,6 +216,7 @@ class EmmiEnv(gym.Env):
             return
         metrics = self.slam.process(odometry_pose, self._scan_now(), self._angles, self.sim.time)
         if metrics is not None:
+            self._oracle.insert(true_pose, self._scan_now(), self._angles)
             self._metrics = metrics
             self._true_at_updates.append(true_pose)
             self._new_updates.append(metrics.measures())
@@ -235,6 +238,9 @@ class EmmiEnv(gym.Env):
         known_free = certainty.observed_cells(self._expected) & (self._expected < 0.5)
         self._coverage = float(np.count_nonzero(known_free & self._reachable)) / self._n_reachable
         self._map_accuracy = map_accuracy(self._expected, self.truth.grid)
+        oracle = self._oracle.probabilities()
+        self._oracle_accuracy = oracle_accuracy(self._expected, oracle)
+        self._wall_consistency = wall_consistency(self._expected, oracle, self.geometry.resolution)
         self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
                                               align=False)
         if self.config.action_mode == "waypoint":
@@ -305,7 +311,8 @@ class EmmiEnv(gym.Env):
             "emmi": m.emmi, "mean_information_best": m.mean_information_best, "pose_entropy": m.pose_entropy,
             "weight_entropy": m.weight_entropy, "path_entropy": m.path_entropy, "joint_entropy": m.joint_entropy,
             "neff": m.neff, "resampled": m.resampled, "coverage": self._coverage,
-            "map_accuracy": self._map_accuracy, "ate": self._ate, "collisions": self.collisions,
+            "map_accuracy": self._map_accuracy, "oracle_accuracy": self._oracle_accuracy,
+            "wall_consistency": self._wall_consistency, "ate": self._ate, "collisions": self.collisions,
             "sim_steps": self.sim_steps, "reward_components": dict(components), "world": self.world.name,
             "rbpf_updates": self._take_updates(),
         }

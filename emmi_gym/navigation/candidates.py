@@ -56,11 +56,16 @@ def frontier_targets(expected_map: np.ndarray, costs: CostMap, observed_tol: flo
         if rows.size < MIN_FRONTIER_CELLS:
             continue
         rows, cols = rows + cluster[0].start, cols + cluster[1].start
-        k = int(np.argmin((rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2))
+        cell_costs = costs.cumulative[rows, cols] * geometry.resolution
+        eligible = (cell_costs >= MIN_TRAVEL) & np.isfinite(cell_costs)
+        if not eligible.any():
+            continue
+        # the eligible cell nearest the centroid (a frontier through the robot, as behind a 180-degree
+        # scanner at the start, has its centroid where the robot already is)
+        distance2 = (rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2
+        k = int(np.argmin(np.where(eligible, distance2, np.inf)))
         x, y = geometry.centre_of(rows[k], cols[k])
-        cost = costs.cost_to(float(x), float(y))
-        if MIN_TRAVEL <= cost < np.inf:
-            targets.append(Target("frontier", float(x), float(y), cost, float(rows.size)))
+        targets.append(Target("frontier", float(x), float(y), float(cell_costs[k]), float(rows.size)))
     targets.sort(key=lambda t: (t.travel_cost, t.x, t.y))
     return targets
 
