@@ -6,10 +6,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from PIL import Image
+from scipy import ndimage
 
 import emmi_gym  # noqa: F401 (registers the ids)
 from emmi_gym.world import FREE, OCCUPIED, UNKNOWN, WorldFileError, load_world, rasterise
-from emmi_gym.world.images import dungeon_occupancy
+from emmi_gym.world.images import dungeon_occupancy, map_server_occupancy
 from emmi_gym.world.map_sets import WorldSource, builtin_map_sets, map_set_files
 
 PLANS = Path(__file__).resolve().parents[1] / "emmi_gym" / "worlds_data" / "dungeon_maps"
@@ -164,3 +165,19 @@ def test_a_half_circle_scanner_finds_the_frontier_behind_it():
     start = env.unwrapped.sim.true_pose
     env.step(0)
     assert np.hypot(*(env.unwrapped.sim.true_pose[:2] - start[:2])) > 0.5  # it drove; it did not stand still
+
+
+@pytest.mark.parametrize("name", ["intel", "aces", "csail", "fr079"])
+def test_real_buildings_load_by_name(name):
+    """The worlds built from the corrected logs (scripts/build_building_worlds.py) match their map images: the
+    free space reachable from the log's first pose is the building the robot saw."""
+    world = load_world(name)
+    assert world.source.endswith(f"buildings/{name}.yaml")
+    occupancy = map_server_occupancy(world.source)
+    labels, _ = ndimage.label(occupancy.free)
+    row, col = (int((v - o) / 0.1) for v, o in ((world.start.y, occupancy.origin[1]), (world.start.x,
+                                                                                      occupancy.origin[0])))
+    reachable = labels == labels[row, col]
+    assert reachable.sum() * 0.01 > 300  # m^2
+    assert agreement(world, reachable, 0.1) >= 0.95
+    assert world.clearance(world.start.x, world.start.y) > 0.2

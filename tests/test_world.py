@@ -229,7 +229,7 @@ def _pymunk_ranges(sim, pose, config):
     return np.array(ranges)
 
 
-@pytest.mark.parametrize("world_name", ["loop_corridor", "dungeon_maps/test/img_10011.png"])
+@pytest.mark.parametrize("world_name", ["loop_corridor", "dungeon_maps/test/img_10011.png", "intel"])
 def test_laser_kernel_matches_pymunk_segment_queries(world_name):
     world = load_world(PLANS / world_name.split("/", 1)[1] if world_name.endswith(".png") else world_name)
     config = LaserConfig(n_beams=360)

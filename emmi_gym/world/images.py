@@ -11,10 +11,12 @@ An image becomes a :class:`WorldSpec` in three steps:
    level 208 that yellow becomes) is the start.
 2. **Keep the free space reachable from the start** (4-connected); everything else is obstacle,
    so closed-off pockets neither get walls nor count as area to explore.
-3. **Trace its boundary** with scikit-image's marching squares (``find_contours`` at level 0.5,
-   on pixel edges) and simplify each contour with Douglas-Peucker (``approximate_polygon``,
-   tolerance :data:`CONTOUR_TOLERANCE` pixels): the walls are a few thin segments along the
-   boundary (half a pixel thick), not a shape per pixel.
+3. **Trace its boundary** with scikit-image's marching squares and simplify each contour with
+   Douglas-Peucker (``approximate_polygon``, tolerance :data:`CONTOUR_TOLERANCE` pixels): the
+   walls are a few segments half a pixel thick, not a shape per pixel. They are traced at level
+   :data:`WALL_LEVEL` of the free mask, a quarter pixel inside the obstacle pixels, so that their
+   free-side face lies on the pixel edge: the laser sees the image's boundary, and the ground
+   truth rasterised at the image's resolution gives back the image's free pixels.
 
 Without a start (a map_server map gives none unless its YAML adds ``start: [x, y, theta]``, an
 image without yellow), the robot starts at the free pixel farthest from any obstacle.
@@ -41,6 +43,9 @@ IMAGE_SUFFIXES = (".png", ".pgm")
 DEFAULT_PIXEL_SIZE = 0.1
 #: The largest image read (pixels): a 2 km world at 0.1 m, checked from the header before decoding.
 MAX_IMAGE_PIXELS = 20_000 * 20_000
+#: Level of the free mask (1 free, 0 obstacle) at which walls are traced: 0.75 px from a free pixel's centre,
+#: which with walls half a pixel thick puts their faces on the pixel edges.
+WALL_LEVEL = 0.25
 #: Douglas-Peucker tolerance of the traced walls, pixels (the walls stay within it of the boundary).
 CONTOUR_TOLERANCE = 0.75
 #: DungeonMaps colour rules: grey level (ITU-R 601 luma) from which a pixel is free; the grey level of the
@@ -182,11 +187,11 @@ def world_from_occupancy(occupancy: OccupancyImage) -> WorldSpec:
 
 
 def boundary_walls(region: np.ndarray, res: float, x0: float, y0: float) -> np.ndarray:
-    """(K, 5) thin wall segments along the boundary of a boolean region (rows = y up), simplified."""
+    """(K, 5) walls half a pixel thick along the boundary of a boolean region (rows = y up), simplified."""
     padded = np.pad(region, 1).astype(np.float64)
-    thickness = float(np.clip(res / 2, 0.01, 5.0))
+    thickness = res / 2
     rows = []
-    for contour in find_contours(padded, 0.5):
+    for contour in find_contours(padded, WALL_LEVEL):
         polygon = approximate_polygon(contour, CONTOUR_TOLERANCE)
         xy = np.column_stack([x0 + (polygon[:, 1] - 0.5) * res, y0 + (polygon[:, 0] - 0.5) * res])
         a, b = xy[:-1], xy[1:]

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import MAX_LASER_RANGE, Integer, Real, check_fields, option
-from ._raycast import cast_rays
+from ._raycast import capsule_grid, cast_rays
 
 #: Upper bound of the beams: real scanners have at most a few thousand.
 MAX_BEAMS = 10_000
@@ -47,18 +47,21 @@ class LaserConfig:
 
 
 class Laser:
-    """Casts the configured beams from a pose against a set of capsules (the walls)."""
+    """Casts the configured beams from a pose against a set of capsules (the walls) inside ``bounds``
+    (xmin, ymin, xmax, ymax), bucketed once (see :mod:`._raycast`)."""
 
-    def __init__(self, config: LaserConfig, capsules: np.ndarray):
+    def __init__(self, config: LaserConfig, capsules: np.ndarray, bounds):
         self.config = config
         self.capsules = np.ascontiguousarray(capsules, dtype=np.float64)
+        self._grid = capsule_grid(self.capsules, bounds)
         self._angles = config.angles
         self._buffer = np.empty(config.n_beams)
 
     def true_ranges(self, pose) -> np.ndarray:
         """Noise-free ranges from pose (x, y, theta); beams that hit nothing return max_range."""
         x, y, theta = pose
-        cast_rays(float(x), float(y), self._angles + theta, self.config.max_range, self.capsules, self._buffer)
+        cast_rays(float(x), float(y), self._angles + theta, self.config.max_range, self.capsules, *self._grid,
+                  self._buffer)
         return self._buffer.copy()
 
     def scan(self, pose, rng: np.random.Generator) -> np.ndarray:

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from ..errors import excerpt
 from ..validation import Invalid, Real
-from ..yaml_files import YAML_SUFFIXES, parse_yaml, read_yaml_file
+from ..yaml_files import YAML_SUFFIXES, read_yaml_file
 from .images import (DEFAULT_PIXEL_SIZE, IMAGE_SUFFIXES, dungeon_occupancy, is_map_server_file,
                      map_server_occupancy, world_from_occupancy)
 from .spec import ROBOT_RADIUS, Place, WorldFileError, WorldSpec, point_segment_distance
@@ -57,30 +57,40 @@ def _looks_numeric(text: str) -> bool:
     return True
 
 
+#: Folders of ``worlds_data`` whose YAML files are built-in worlds: hand-made world files at the top,
+#: map_server maps of real buildings (``scripts/build_building_worlds.py``) in ``buildings/``.
+_BUILTIN_FOLDERS = (".", "buildings")
+
+
+def _builtin_files() -> dict[str, Path]:
+    root = Path(str(resources.files("emmi_gym.worlds_data")))
+    return {path.stem: path for folder in _BUILTIN_FOLDERS for path in sorted((root / folder).glob("*.yaml"))}
+
+
 def builtin_worlds() -> list[str]:
-    """Names of the worlds shipped with the package (the YAML files in ``envs/``)."""
-    files = resources.files("emmi_gym.worlds_data").iterdir()
-    return sorted(Path(f.name).stem for f in files if f.name.endswith(".yaml"))
+    """Names of the worlds shipped with the package: ``loop_corridor``, ``office`` and the buildings
+    ``intel``, ``aces``, ``csail``, ``fr079``."""
+    return sorted(_builtin_files())
 
 
 def load_world(name_or_path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> WorldSpec:
-    """Load a world: a built-in name (``"loop_corridor"``), a world file (``.yaml``), a ROS map_server
-    map (its ``.yaml``) or a floor-plan image (``.png``/``.pgm``, DungeonMaps colour rules,
-    ``pixel_size`` metres per pixel); see :mod:`emmi_gym.world.images`."""
+    """Load a world: a built-in name (``"loop_corridor"``, ``"intel"``), a world file (``.yaml``), a
+    ROS map_server map (its ``.yaml``) or a floor-plan image (``.png``/``.pgm``, DungeonMaps colour
+    rules, ``pixel_size`` metres per pixel); see :mod:`emmi_gym.world.images`."""
     name = str(name_or_path)
     path = Path(name)
+    builtin = _builtin_files()
+    if path.suffix.lower() not in IMAGE_SUFFIXES + YAML_SUFFIXES and not path.exists():
+        if name not in builtin:
+            raise ValueError(f"unknown world {excerpt(name)}: give a path to a world file or map_server map (.yaml), "
+                             f"an image ({'/'.join(IMAGE_SUFFIXES)}) or one of {sorted(builtin)}")
+        path = builtin[name]
     if path.suffix.lower() in IMAGE_SUFFIXES:
         return world_from_occupancy(dungeon_occupancy(path, pixel_size))
-    if path.suffix.lower() in YAML_SUFFIXES or path.exists():
-        data = read_yaml_file(path, "world file", WorldFileError)
-        if is_map_server_file(data):
-            return world_from_occupancy(map_server_occupancy(path, data))
-        return parse_world(data, source=str(path))
-    if name not in builtin_worlds():
-        raise ValueError(f"unknown world {excerpt(name)}: give a path to a world file or map_server map (.yaml), "
-                         f"an image ({'/'.join(IMAGE_SUFFIXES)}) or one of {builtin_worlds()}")
-    text = resources.files("emmi_gym.worlds_data").joinpath(f"{name}.yaml").read_text()
-    return parse_world(parse_yaml(text, f"{name}.yaml", WorldFileError), source=f"{name}.yaml")
+    data = read_yaml_file(path, "world file", WorldFileError)
+    if is_map_server_file(data):
+        return world_from_occupancy(map_server_occupancy(path, data))
+    return parse_world(data, source=path.name if name in builtin else str(path))
 
 
 class _Reader:

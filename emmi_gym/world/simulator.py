@@ -51,7 +51,7 @@ class Simulator:
                  laser: LaserConfig = LaserConfig(), odometry: OdometryNoise = OdometryNoise()):
         self.world, self.robot_config, self.odometry_noise = world, robot, odometry
         self._build_space()
-        self.laser = Laser(laser, self.wall_capsules())
+        self.laser = Laser(laser, self.wall_capsules(), world.bounds)
         self.rng = np.random.default_rng(0)
         self.odometry_pose = np.zeros(3)
         self.time = 0.0
