@@ -1,12 +1,15 @@
 """Scripted policies for the waypoint environments; they use the env's public API only
-(``action_masks()``, ``targets``, ``estimated_pose``, ``world``, ``truth``).
+(``action_masks()``, ``targets``, ``loop_spreads``, ``geometry``, ``estimated_pose``, ``world``, ``truth``).
 
 - ``frontier``: the nearest frontier (slot 0), else the first valid slot;
 - ``random``: a uniformly random valid slot;
 - ``close_loop_first`` (the paper's A): from the decision point back to the start
   (closing the loop), then into the unexplored area, then nearest frontiers;
 - ``explore_first`` (the paper's B): into the unexplored area first, then back to
-  the start, then nearest frontiers.
+  the start, then nearest frontiers;
+- ``active_loop_closing``: for any world, go back to close a loop when the particles
+  disagree about it, else the nearest frontier (Stachniss, Hähnel and Burgard,
+  "Exploration with active loop-closing for FastSLAM", IROS 2004).
 """
 
 from __future__ import annotations
@@ -51,6 +54,57 @@ class RandomPolicy:
 
     def __call__(self, env) -> int:
         return int(self.rng.choice(np.flatnonzero(_core(env).action_masks())))
+
+
+class ActiveLoopClosingPolicy:
+    """Close a loop while the particles disagree about it, else explore (Stachniss et al. 2004).
+
+    Stachniss, Hähnel and Burgard detect a loop-closing opportunity where the map offers a
+    short way back to a place that the robot's own path reaches only by a long detour,
+    and go back there while the filter's uncertainty is high, since re-observing a known
+    place is what lets the particle set resolve the loop. Here the environment's revisit
+    targets are those opportunities, and each one's *loop spread*
+    (:func:`~emmi_gym.certainty.loop_displacement_spread`: how much the particles disagree
+    about the robot's position relative to that place) is the uncertainty that closing it
+    can resolve. Above ``threshold_cells`` cells (default 1.5: beyond that the particles'
+    maps of the place differ by more than a cell) the policy takes the revisit target of
+    highest spread; otherwise, as after a loop closed, the nearest frontier. As in their
+    scheme, loop closing interrupts exploration and does not replace it: after going back
+    once the robot explores (one frontier) before it may go back again, and a place it went
+    back to is not chosen again within ``REVISIT_SPACING`` metres, so a loop that does not
+    close does not hold the robot.
+    """
+
+    name = "active_loop_closing"
+    #: Metres round a revisited target in which no other revisit is chosen again.
+    REVISIT_SPACING = 3.0
+
+    def __init__(self, threshold_cells: float = 1.5):
+        self.threshold_cells = threshold_cells
+        self.revisited: list[tuple[float, float]] = []
+        self.went_back = False  # the last decision went back to close a loop
+
+    def reset(self, seed: int | None = None) -> None:
+        self.revisited = []
+        self.went_back = False
+
+    def __call__(self, env) -> int:
+        core = _core(env)
+        mask, targets, spreads = core.action_masks(), core.targets, core.loop_spreads
+        threshold = self.threshold_cells * core.geometry.resolution
+        loops = [k for k in np.flatnonzero(mask) if targets[k] is not None and targets[k].kind == "revisit"
+                 and spreads[k] > threshold and self._new(targets[k].xy)]
+        frontiers = [k for k in np.flatnonzero(mask) if targets[k] is not None and targets[k].kind == "frontier"]
+        if loops and not (self.went_back and frontiers):
+            k = max(loops, key=lambda k: spreads[k])
+            self.revisited.append(targets[k].xy)
+            self.went_back = True
+            return int(k)
+        self.went_back = False
+        return int(frontiers[0] if frontiers else np.flatnonzero(mask)[0])
+
+    def _new(self, xy) -> bool:
+        return all(np.hypot(xy[0] - x, xy[1] - y) > self.REVISIT_SPACING for x, y in self.revisited)
 
 
 def distances_to(truth, place) -> np.ndarray:
@@ -142,9 +196,10 @@ class GoalSequencePolicy:
 
 
 def make_policy(name: str):
-    """A fresh policy by name: frontier, random, close_loop_first, explore_first."""
+    """A fresh policy by name: frontier, random, active_loop_closing, close_loop_first, explore_first."""
     policies = {
         "frontier": FrontierPolicy,
+        "active_loop_closing": ActiveLoopClosingPolicy,
         "random": RandomPolicy,
         "close_loop_first": lambda: GoalSequencePolicy("close_loop_first", ("target_a", "target_b")),
         "explore_first": lambda: GoalSequencePolicy("explore_first", ("target_b", "target_a")),

@@ -189,7 +189,7 @@ class EmmiEnv(gym.Env):
             raise ValueError(f"action {action} is outside Discrete({self.config.n_actions})")
         target: Target | None = self._slots[action]
         outcome = self._navigation.follow(_EnvRobot(self), target) if target is not None else "stayed"
-        if outcome == "blocked":  # never offer it again this episode
+        if outcome == "blocked" or (outcome == "stayed" and target is not None):  # never offer it again
             self._blocked.append((target.x, target.y))
             self._stale = True
         if outcome == "stayed":  # an empty slot, or a target the robot cannot leave for: stand still
@@ -285,6 +285,13 @@ class EmmiEnv(gym.Env):
     def targets(self) -> list[Target | None]:
         """The candidate target of each action slot (None: empty), in the map frame."""
         return list(self._slots)
+
+    @property
+    def loop_spreads(self) -> list[float]:
+        """For each action slot, the loop spread (m) of its revisit target: how much the particles disagree
+        about the robot's position relative to the place it revisits
+        (:func:`~emmi_gym.certainty.loop_displacement_spread`); 0 for frontiers and empty slots."""
+        return list(self._loop_spreads)
 
     # ------------------------------------------------------------------ observation, info, rendering
 

@@ -11,6 +11,10 @@ ENV_IDS = {
     "LoopCorridor-v0": dict(world="loop_corridor", start_at="decision", action_mode="waypoint"),
     "Explore-v0": dict(world=None, start_at="start", action_mode="waypoint"),
     "ExploreVelocity-v0": dict(world=None, start_at="start", action_mode="velocity"),
+    # the hard configuration: real floor plans, a SICK LMS200 at its 8 m range, poor odometry
+    "ExplorePlans-v0": dict(world="dungeon_maps/train", start_at="start", action_mode="waypoint",
+                            laser={"preset": "sick_lms200", "max_range": 8.0}, odometry_noise="poor",
+                            max_decisions=120, max_sim_steps=30000),
 }
 
 

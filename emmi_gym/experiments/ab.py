@@ -151,7 +151,8 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
                 new_area_on_arrival = map_accuracy(maps[event], new_area_truth)
     expected = core.expected_map
     final = {
-        "map_accuracy": info["map_accuracy"], "ate": info["ate"], "coverage": info["coverage"],
+        "map_accuracy": info["map_accuracy"], "oracle_accuracy": info["oracle_accuracy"],
+        "wall_consistency": info["wall_consistency"], "ate": info["ate"], "coverage": info["coverage"],
         "new_area_accuracy_on_arrival": new_area_on_arrival,
         "new_area_accuracy": map_accuracy(expected, new_area_truth),
         "new_area_cells": int(new_area.sum()), "sim_steps": info["sim_steps"], "decisions": core.decisions,

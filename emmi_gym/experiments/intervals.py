@@ -21,9 +21,10 @@ CONFIDENCE = 0.95
 PROPORTIONS = ("completed", "reached_target", "closed_loop_first")
 RANGES = {
     **{name: (0.0, 1.0) for name in PROPORTIONS},
-    "map_accuracy": (0.0, 1.0), "new_area_accuracy": (0.0, 1.0), "new_area_accuracy_on_arrival": (0.0, 1.0),
+    "map_accuracy": (0.0, 1.0), "oracle_accuracy": (0.0, 1.0), "wall_consistency": (0.0, 1.0),
+    "new_area_accuracy": (0.0, 1.0), "new_area_accuracy_on_arrival": (0.0, 1.0),
     "coverage": (0.0, 1.0), "ate": (0.0, math.inf), "resamplings": (0.0, math.inf),
-    "sim_steps_to_target": (0.0, math.inf),
+    "sim_steps_to_target": (0.0, math.inf), "sim_steps": (0.0, math.inf), "decisions": (0.0, math.inf),
 }
 
 

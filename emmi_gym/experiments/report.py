@@ -22,6 +22,8 @@ SUMMARY_COLUMNS = {
     "joint_entropy_change": "joint entropy change (nats)",
     "resamplings": "resamplings after the decision",
     "map_accuracy": "final map accuracy",
+    "oracle_accuracy": "final accuracy against the oracle map",
+    "wall_consistency": "final wall consistency",
     "new_area_accuracy_on_arrival": "new-area map accuracy on arriving there",
     "new_area_accuracy": "new-area map accuracy at the end",
     "ate": "final ATE (m)",
@@ -54,7 +56,8 @@ def run_measures(run: ABRun, horizon: int | None) -> dict:
         row[f"{measure}_change"] = math.nan if later is None else later[measure] - at_decision[measure]
     window = run.rows[run.decision + 1: run.decision + 1 + (horizon or 0)]
     row["resamplings"] = sum(bool(r["resampled"]) for r in window) if horizon is not None else math.nan
-    row.update({k: run.final[k] for k in ("map_accuracy", "new_area_accuracy_on_arrival", "new_area_accuracy",
+    row.update({k: run.final[k] for k in ("map_accuracy", "oracle_accuracy", "wall_consistency",
+                                           "new_area_accuracy_on_arrival", "new_area_accuracy",
                                            "ate", "coverage", "sim_steps", "decisions", "collisions")})
     row["completed"] = float(run.final["completed"])
     return row

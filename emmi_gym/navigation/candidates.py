@@ -15,7 +15,7 @@ from scipy import ndimage
 from .planner import FREE_P, OCCUPIED_P, CostMap
 
 MIN_FRONTIER_CELLS = 4        # frontiers shorter than this (cells) are noise
-MIN_TRAVEL = 1.0              # m: a target nearer than this is where the robot already is
+MIN_TRAVEL = 1.0              # m: a frontier target nearer than this (straight line) is where the robot already is
 LOOP_MIN_PATH = 12.0          # m of path between a past pose and the robot for a revisit to close a loop
 LOOP_RATIO = 1.5              # ... and at least this ratio of path length to travel cost
 REVISIT_SPACING = 3.0         # m between two revisit targets
@@ -57,7 +57,8 @@ def frontier_targets(expected_map: np.ndarray, costs: CostMap, observed_tol: flo
             continue
         rows, cols = rows + cluster[0].start, cols + cluster[1].start
         cell_costs = costs.cumulative[rows, cols] * geometry.resolution
-        eligible = (cell_costs >= MIN_TRAVEL) & np.isfinite(cell_costs)
+        away = np.hypot(rows - costs.start[0], cols - costs.start[1]) * geometry.resolution
+        eligible = (away >= MIN_TRAVEL) & np.isfinite(cell_costs)
         if not eligible.any():
             continue
         # the eligible cell nearest the centroid (a frontier through the robot, as behind a 180-degree

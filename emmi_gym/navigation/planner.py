@@ -31,12 +31,14 @@ class CostMap:
     """Travel costs from the robot over an expected map; ``cumulative`` is inf where unreachable.
 
     ``traceback`` and ``offsets`` are scikit-image's MCP result (for each cell, the index of the
-    step that reached it; -1 at the start), kept as plain arrays so the env can be pickled."""
+    step that reached it; -1 at the start), kept as plain arrays so the env can be pickled;
+    ``start`` is the (row, col) the costs are measured from."""
 
     geometry: GridGeometry
     cumulative: np.ndarray
     traceback: np.ndarray
     offsets: np.ndarray
+    start: tuple[int, int]
 
     def cost_to(self, x: float, y: float) -> float:
         row, col = self.geometry.cell_of(x, y)
@@ -95,7 +97,7 @@ def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, rob
     mcp = MCP_Geometric(costs)
     ends = None if goal_xy is None else [_clipped_cell(geometry, goal_xy)]
     cumulative, traceback = mcp.find_costs([(row, col)], ends)
-    return CostMap(geometry, cumulative, np.asarray(traceback), np.asarray(mcp.offsets))
+    return CostMap(geometry, cumulative, np.asarray(traceback), np.asarray(mcp.offsets), (row, col))
 
 
 def _clipped_cell(geometry: GridGeometry, xy) -> tuple[int, int]:

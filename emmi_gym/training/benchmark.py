@@ -30,6 +30,8 @@ from .train import make_env, set_torch_threads, train
 #: Ground-truth columns of the benchmark table, with their labels.
 TABLE_COLUMNS = {
     "map_accuracy": "map accuracy",
+    "oracle_accuracy": "accuracy against the oracle map",
+    "wall_consistency": "wall consistency",
     "ate": "ATE (m)",
     "coverage": "coverage",
     "reached_target": "reached the coverage target",
@@ -226,8 +228,8 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
     plt.close(fig)
 
     table = summary(results)
-    columns = ("map_accuracy", "ate", "coverage", LOOP_ORDER_KEY)
-    fig, axes = plt.subplots(1, len(columns), figsize=(12, 3.4))
+    columns = ("oracle_accuracy", "wall_consistency", "map_accuracy", "ate", "coverage", LOOP_ORDER_KEY)
+    fig, axes = plt.subplots(1, len(columns), figsize=(18, 3.4))
     names = list(table)
     for ax, column in zip(axes, columns):
         stats_ = [table[v][column] for v in names]
