@@ -303,6 +303,27 @@ def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
     assert returns["still"] < explore_return and returns["spin"] < explore_return, (returns, explore_return)
 
 
+def test_spinning_in_place_farms_emmi_but_not_emmi_coverage():
+    """Fast version of scripts/reward_farming.py: 150 steps of spinning at the start of a plan with a 180-degree
+    laser. Re-scanning raises EMMI (a mean over observed cells) well beyond the time cost; weighted by coverage
+    the same rise pays little; standing still pays exactly the time cost under every variant."""
+    spin, still = {}, {}
+    for returns, command in ((spin, (0.0, 1.0)), (still, (0.0, 0.0))):
+        env = gym.make("emmi_gym/ExplorePlans-v0", action_mode="velocity", max_sim_steps=150)
+        env.reset(seed=0)
+        done = False
+        while not done:
+            _, _, terminated, truncated, info = env.step(np.array(command, dtype=np.float32))
+            for name, value in info["reward_components"].items():
+                returns[name] = returns.get(name, 0.0) + value
+            done = terminated or truncated
+    time_cost = spin["time"]
+    assert time_cost == pytest.approx(-0.3)
+    assert spin["emmi"] + time_cost > 1.0
+    assert spin["emmi_coverage"] < 0.2 * spin["emmi"]
+    assert all(still[name] == pytest.approx(0.0, abs=1e-9) for name in ("emmi", "emmi_coverage", "coverage"))
+
+
 def test_pooled_map_keeps_thin_walls():
     """A wall one cell thick under 0.5 m pixels of 0.1 m cells still shows in every pixel it crosses."""
     from emmi_gym.env.observation import MapPooling

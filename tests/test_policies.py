@@ -48,3 +48,51 @@ def test_random_policy_is_seeded_and_valid():
     assert all(mask[p] for p in picks)
     with pytest.raises(ValueError, match="unknown policy 'greedy'; choose one of"):
         make_policy("greedy")
+
+
+class _Slots:
+    """A waypoint env as the policies see it: slots, masks, loop spreads, the grid's resolution."""
+
+    def __init__(self, targets, spreads, resolution=0.1):
+        from emmi_gym.grid import GridGeometry
+
+        self.targets, self.loop_spreads = targets, spreads
+        self.geometry = GridGeometry(resolution, 0.0, 0.0, 10, 10)
+
+    def action_masks(self):
+        mask = np.array([t is not None for t in self.targets])
+        mask[0] |= not mask.any()
+        return mask
+
+
+def test_active_loop_closing_goes_back_when_the_particles_disagree_and_explores_when_they_agree():
+    from emmi_gym.navigation.candidates import Target
+
+    near, far = Target("frontier", 2, 0, 2.0, 30), Target("frontier", 9, 0, 9.0, 30)
+    weak, strong = Target("revisit", 0, 5, 6.0, 2.0, 10), Target("revisit", 0, -5, 7.0, 3.0, 4)
+    policy = make_policy("active_loop_closing")
+    policy.reset(0)
+    # spreads of 0.05 and 0.1 m: below 1.5 cells (0.15 m), the loops are as good as closed -> nearest frontier
+    assert policy(_Slots([near, far, weak, strong], [0, 0, 0.05, 0.1])) == 0
+    # one loop the particles disagree on (0.4 m): go back there, the one of highest spread
+    assert policy(_Slots([near, far, weak, strong], [0, 0, 0.2, 0.4])) == 3
+    # having gone back once, explore before going back again ...
+    assert policy(_Slots([near, far, weak, strong], [0, 0, 0.3, 0.1])) == 0
+    # ... then the other loop; never the place already revisited
+    assert policy(_Slots([near, far, weak, strong], [0, 0, 0.3, 0.5])) == 2
+    assert policy(_Slots([near, far, None, strong], [0, 0, 0, 0.5])) == 0
+    assert policy(_Slots([None, None, None, strong], [0, 0, 0, 0.5])) == 3  # no frontier: the only valid slot
+    # the threshold is in cells: at 0.5 m cells a 0.4 m spread is within one cell
+    policy.reset(0)
+    assert policy(_Slots([near, far, weak, strong], [0, 0, 0.2, 0.4], resolution=0.5)) == 0
+
+
+def test_active_loop_closing_runs_on_a_plan():
+    env = gym.make("emmi_gym/ExplorePlans-v0", max_decisions=6)
+    policy = make_policy("active_loop_closing")
+    env.reset(seed=3)
+    policy.reset(3)
+    for _ in range(6):
+        action = policy(env)
+        assert env.unwrapped.action_masks()[action]
+        env.step(action)

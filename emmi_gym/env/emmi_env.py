@@ -19,7 +19,7 @@ from ..slam.occupancy import ParticleMaps
 from ..world import RobotConfig, Simulator, rasterise
 from ..world.map_sets import WorldSource
 from . import observation as obs
-from .config import EnvConfig, make_config
+from .config import REWARDS, EnvConfig, make_config
 from .rendering import HumanWindow, render_frame
 from .rewards import Snapshot, reward_components, total_reward
 
@@ -119,8 +119,7 @@ class EmmiEnv(gym.Env):
         self.sim_steps = self.collisions = 0
         self._refresh()
         self._snapshot = self._take_snapshot()
-        return self._observation(), self._info({k: 0.0 for k in ("emmi", "pose_entropy", "joint_entropy",
-                                                                  "coverage", "time", "collision")})
+        return self._observation(), self._info({k: 0.0 for k in (*REWARDS, "time", "collision")})
 
     def _drive_route(self, world, name: str) -> None:
         """Drive a route of the world with the true pose (the filter running), within a bound of time:
