@@ -69,14 +69,15 @@ def test_spaces_and_info():
     assert obs["map"].shape == (2, 64, 64) and obs["map"].dtype == np.uint8
     assert env.observation_space.contains(obs)
     for key in ("emmi", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy", "joint_entropy",
-                "neff", "resampled", "coverage", "map_accuracy", "ate", "collisions", "sim_steps",
+                "neff", "resampled", "coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate",
+                "collisions", "sim_steps",
                 "reward_components", "rbpf_updates"):
         assert key in info
     assert len(info["rbpf_updates"]) > 80  # the drive to the decision point: one row per filter update
     assert info["rbpf_updates"][-1]["emmi"] == info["emmi"]
     obs, reward, terminated, truncated, info = env.step(frontier_action(env))
-    assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage", "time",
-                                              "collision"}
+    assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage",
+                                              "emmi_coverage", "time", "collision"}
     expected = info["reward_components"]["emmi"] + info["reward_components"]["time"] + \
         info["reward_components"]["collision"]
     assert reward == pytest.approx(expected)
@@ -186,8 +187,8 @@ def test_async_vector_env_and_sb3_subproc_spawn():
 
 @pytest.mark.parametrize("options, message", [
     (dict(colour="red"), r"gym.make: field 'colour': expected one of the known options \[.*'reward'"),
-    (dict(reward="fun"), r"field 'reward': expected one of \['emmi', 'pose_entropy', 'joint_entropy', 'coverage'\], "
-                         r"got 'fun'"),
+    (dict(reward="fun"), r"field 'reward': expected one of \['emmi', 'pose_entropy', 'joint_entropy', 'coverage', "
+                         r"'emmi_coverage'\], got 'fun'"),
     (dict(action_mode="teleport"), r"expected one of \['waypoint', 'velocity'\]"),
     (dict(particles=0), r"field 'particles': expected an integer in \[1, 1000\]"),
     (dict(laser={"beams": 10}), r"field 'laser.beams': expected one of the known options \['fov', 'n_beams'"),

@@ -41,8 +41,9 @@ IMAGE_SUFFIXES = (".png", ".pgm")
 #: Metres per pixel of a plain image unless the user gives ``pixel_size`` (DungeonMaps' corridors,
 #: 32 px, become 3.2 m; a 640 x 480 plan 64 x 48 m).
 DEFAULT_PIXEL_SIZE = 0.1
-#: The largest image read (pixels): a 2 km world at 0.1 m, checked from the header before decoding.
-MAX_IMAGE_PIXELS = 20_000 * 20_000
+#: The largest image read (pixels; 500 m square at 0.1 m, 250 m at 0.05 m), checked from the header before
+#: decoding: classifying one takes about 16 bytes per pixel (400 MB at the bound).
+MAX_IMAGE_PIXELS = 5_000 * 5_000
 #: Level of the free mask (1 free, 0 obstacle) at which walls are traced: 0.75 px from a free pixel's centre,
 #: which with walls half a pixel thick puts their faces on the pixel edges.
 WALL_LEVEL = 0.25
@@ -78,7 +79,7 @@ class MapServerFile:
     negate: int = option(0, Integer(0, 1))
     occupied_thresh: float = option(0.65, Real(0.0, 1.0))
     free_thresh: float = option(0.196, Real(0.0, 1.0))
-    mode: str = option("trinary", Choice(("trinary", "scale")))
+    mode: str = option("trinary", Choice(("trinary", "scale")))  # the free / not-free split is the same in both
     start: tuple | None = option(None, Maybe(Tuple(Real(-1e4, 1e4), 3), "the free pixel farthest from obstacles"))
     name: str | None = option(None, Maybe(Text(), "the file's name"))
 
@@ -120,8 +121,8 @@ def dungeon_occupancy(path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> Occupancy
     its lower-left corner at (0, 0)."""
     path = Path(path)
     pixel_size = check_value(pixel_size, PIXEL_SIZE, "load_world", "pixel_size", WorldFileError)
-    rgb = np.asarray(read_pixels(path).convert("RGB"), dtype=np.int16)
-    grey = (rgb @ np.array([299, 587, 114])) // 1000  # ITU-R 601 luma, as Pillow's "L"
+    rgb = np.asarray(read_pixels(path).convert("RGB"))
+    grey = (rgb @ np.array([299, 587, 114], dtype=np.int32)) // 1000  # ITU-R 601 luma, as Pillow's "L"
     if np.any(rgb[..., 0] != rgb[..., 2]):  # a colour image: the start square is yellow
         start_mask = (rgb[..., 0] > 200) & (rgb[..., 1] > 150) & (rgb[..., 2] < 100)
     else:  # a grey image: yellow became START_GREY
