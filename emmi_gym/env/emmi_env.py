@@ -286,6 +286,12 @@ class EmmiEnv(gym.Env):
         return list(self._slots)
 
     @property
+    def oracle_map(self) -> np.ndarray:
+        """The oracle map now (:mod:`emmi_gym.oracle`): this episode's scans at the true poses, probabilities on
+        the grid of ``geometry`` (ground truth, for evaluation only)."""
+        return self._oracle.probabilities()
+
+    @property
     def loop_spreads(self) -> list[float]:
         """For each action slot, the loop spread (m) of its revisit target: how much the particles disagree
         about the robot's position relative to the place it revisits

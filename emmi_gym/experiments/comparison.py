@@ -50,7 +50,7 @@ def run_episode(world: str, seed: int, policy_name: str, settings: ComparisonSet
     row = {"world": str(world), "plan": core.world.name, "seed": seed, "policy": policy_name,
            "decisions": core.decisions, **{k: float(info[k]) for k in SCORES if k in info}}
     if keep_maps:
-        row.update(expected_map=core.expected_map, oracle_map=core._oracle.probabilities(),
+        row.update(expected_map=core.expected_map, oracle_map=core.oracle_map,
                    extent=core.geometry.extent, true_path=core.true_path)
     env.close()
     return row
