@@ -6,10 +6,13 @@ they know arrays, not worlds or filters.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
-from scipy import ndimage
+from scipy import optimize, spatial
 
 from .certainty import DEFAULT_OBSERVED_TOL, observed_cells
+from .certainty.information import cell_entropy, max_entropy_bits
 from .grid import GridGeometry
 
 
@@ -92,11 +95,20 @@ def map_accuracy(probabilities: np.ndarray, truth_grid: np.ndarray, *, geometry:
 WALL_TOLERANCE = 0.2
 
 
+@functools.lru_cache(maxsize=8)
+def observed_margin(observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """The distance from 0.5 beyond which a cell counts as observed in eq. (10): the entropy is symmetric about
+    p = 0.5 and falls with |p - 0.5|, so ``H(p) < max_entropy_bits`` is ``|p - 0.5| > margin`` (no logarithm per
+    cell)."""
+    limit = max_entropy_bits(observed_tol)
+    return float(optimize.brentq(lambda p: float(cell_entropy(p)) - limit, 0.5, 1.0, xtol=1e-15)) - 0.5
+
+
 def map_labels(probabilities: np.ndarray, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:
     """-1 (unobserved, eq. 10), 0 (free: p <= 0.5) or 1 (occupied: p > 0.5) per cell, int8."""
     p = np.asarray(probabilities)
     labels = (p > 0.5).astype(np.int8)
-    labels[~observed_cells(p, observed_tol)] = -1
+    labels[np.abs(p - 0.5) <= observed_margin(observed_tol)] = -1
     return labels
 
 
@@ -126,9 +138,6 @@ def wall_consistency(probabilities: np.ndarray, oracle: np.ndarray, resolution: 
     walls = map_labels(oracle, observed_tol) == 1
     if not walls.any():
         return 0.0
-    rows, cols = np.nonzero(mine | walls)
-    margin = int(np.ceil(tolerance / resolution)) + 1
-    r0, c0 = max(rows.min() - margin, 0), max(cols.min() - margin, 0)
-    crop = (slice(r0, rows.max() + margin + 1), slice(c0, cols.max() + margin + 1))
-    distance = ndimage.distance_transform_edt(~walls[crop]) * resolution
-    return float(np.mean(distance[mine[crop]] <= tolerance + 1e-9))
+    tree = spatial.cKDTree(np.argwhere(walls))
+    distance, _ = tree.query(np.argwhere(mine), distance_upper_bound=tolerance / resolution + 1e-9)
+    return float(np.mean(np.isfinite(distance)))
