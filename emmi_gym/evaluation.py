@@ -6,13 +6,10 @@ they know arrays, not worlds or filters.
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
-from scipy import optimize, spatial
+from scipy import spatial
 
 from .certainty import DEFAULT_OBSERVED_TOL, observed_cells
-from .certainty.information import cell_entropy, max_entropy_bits
 from .grid import GridGeometry
 
 
@@ -95,20 +92,11 @@ def map_accuracy(probabilities: np.ndarray, truth_grid: np.ndarray, *, geometry:
 WALL_TOLERANCE = 0.2
 
 
-@functools.lru_cache(maxsize=8)
-def observed_margin(observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
-    """The distance from 0.5 beyond which a cell counts as observed in eq. (10): the entropy is symmetric about
-    p = 0.5 and falls with |p - 0.5|, so ``H(p) < max_entropy_bits`` is ``|p - 0.5| > margin`` (no logarithm per
-    cell)."""
-    limit = max_entropy_bits(observed_tol)
-    return float(optimize.brentq(lambda p: float(cell_entropy(p)) - limit, 0.5, 1.0, xtol=1e-15)) - 0.5
-
-
 def map_labels(probabilities: np.ndarray, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:
     """-1 (unobserved, eq. 10), 0 (free: p <= 0.5) or 1 (occupied: p > 0.5) per cell, int8."""
     p = np.asarray(probabilities)
     labels = (p > 0.5).astype(np.int8)
-    labels[np.abs(p - 0.5) <= observed_margin(observed_tol)] = -1
+    labels[~observed_cells(p, observed_tol)] = -1
     return labels
 
 
@@ -117,13 +105,8 @@ def oracle_accuracy(probabilities: np.ndarray, oracle: np.ndarray, observed_tol:
     free or occupied): 1.0 when SLAM added no error to what the scans could show; lower for walls
     drawn in the wrong place, cells freed through walls, space mapped where the robot never saw.
     1.0 when neither map has observed anything (nothing to disagree on)."""
-    if np.shape(probabilities) != np.shape(oracle):
-        raise ValueError(f"map {np.shape(probabilities)} and oracle {np.shape(oracle)} must share one grid")
-    mine, truth = map_labels(probabilities, observed_tol), map_labels(oracle, observed_tol)
-    seen = (mine >= 0) | (truth >= 0)
-    if not seen.any():
-        return 1.0
-    return float(np.mean(mine[seen] == truth[seen]))
+    _check_same_grid(probabilities, oracle)
+    return _agreement(map_labels(probabilities, observed_tol), map_labels(oracle, observed_tol))
 
 
 def wall_consistency(probabilities: np.ndarray, oracle: np.ndarray, resolution: float,
@@ -132,12 +115,37 @@ def wall_consistency(probabilities: np.ndarray, oracle: np.ndarray, resolution: 
     oracle map. A loop closed too late leaves a revisited wall drawn twice, the copy away from every
     true wall: this share drops where accuracy, dominated by free space, hardly moves. 1.0 for a map
     with no occupied cell."""
-    mine = map_labels(probabilities, observed_tol) == 1
-    if not mine.any():
+    _check_same_grid(probabilities, oracle)
+    return _walls_near(map_labels(probabilities, observed_tol), map_labels(oracle, observed_tol), resolution,
+                       tolerance)
+
+
+def oracle_scores(probabilities: np.ndarray, oracle: np.ndarray, resolution: float,
+                  tolerance: float = WALL_TOLERANCE, observed_tol: float = DEFAULT_OBSERVED_TOL) -> tuple[float, float]:
+    """(:func:`oracle_accuracy`, :func:`wall_consistency`), labelling each map once."""
+    _check_same_grid(probabilities, oracle)
+    mine, truth = map_labels(probabilities, observed_tol), map_labels(oracle, observed_tol)
+    return _agreement(mine, truth), _walls_near(mine, truth, resolution, tolerance)
+
+
+def _check_same_grid(probabilities, oracle) -> None:
+    if np.shape(probabilities) != np.shape(oracle):
+        raise ValueError(f"map {np.shape(probabilities)} and oracle {np.shape(oracle)} must share one grid")
+
+
+def _agreement(mine: np.ndarray, truth: np.ndarray) -> float:
+    seen = (mine >= 0) | (truth >= 0)
+    if not seen.any():
         return 1.0
-    walls = map_labels(oracle, observed_tol) == 1
-    if not walls.any():
+    return float(np.mean(mine[seen] == truth[seen]))
+
+
+def _walls_near(mine: np.ndarray, truth: np.ndarray, resolution: float, tolerance: float) -> float:
+    walls_here = np.argwhere(mine == 1)
+    if not len(walls_here):
+        return 1.0
+    true_walls = np.argwhere(truth == 1)
+    if not len(true_walls):
         return 0.0
-    tree = spatial.cKDTree(np.argwhere(walls))
-    distance, _ = tree.query(np.argwhere(mine), distance_upper_bound=tolerance / resolution + 1e-9)
+    distance, _ = spatial.cKDTree(true_walls).query(walls_here, distance_upper_bound=tolerance / resolution + 1e-9)
     return float(np.mean(np.isfinite(distance)))

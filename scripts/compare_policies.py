@@ -44,8 +44,8 @@ def main() -> None:
         writer = csv.DictWriter(f, ["world", "plan", "seed", "policy", *SCORES])
         writer.writeheader()
         writer.writerows(rows)
-    title = f"{args.env} {settings.env_options or ''} on {len(worlds)} worlds x {len(args.seeds)} seeds".replace(
-        "  ", " ")
+    options = f" {settings.env_options}" if settings.env_options else ""
+    title = f"{args.env}{options} on {len(worlds)} worlds x {len(args.seeds)} seeds"
     table = markdown_table(rows, policy, baseline, title)
     (args.out / "summary.md").write_text(table + "\n")
     print(table)

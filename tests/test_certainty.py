@@ -330,3 +330,15 @@ def test_bad_lut_is_named():
         C.emmi(codes.astype(np.float32), [1, 1], lut=np.full(256, 0.5))
     with pytest.raises(ValueError, match="probabilities in \\[0, 1\\]"):
         C.emmi(codes, [1, 1], lut=np.full(256, 2.0))
+
+
+def test_observed_cells_decide_by_the_entropy_rule_of_eq_10():
+    """The mask (|p - 0.5| outside a band, the entropy inside it) is exactly H2(p) < max_entropy_bits."""
+    from emmi_gym.certainty.information import cell_entropy, max_entropy_bits, observed_halfwidth
+
+    for tol in (0.0, 0.001, 0.05):
+        h = observed_halfwidth(max_entropy_bits(tol))
+        p = np.concatenate([0.5 + np.linspace(-2 * h, 2 * h, 20001), np.linspace(0, 1, 1001), [np.nan]])
+        with np.errstate(invalid="ignore"):
+            expected = cell_entropy(p) < max_entropy_bits(tol)
+        assert np.array_equal(C.observed_cells(p, tol), expected)

@@ -78,16 +78,19 @@ def max_entropy_bits(observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
 
 
 @functools.lru_cache(maxsize=32)
-def unobserved_halfwidth(max_bits: float) -> float:
-    """A half-width around p = 0.5 inside which every cell is surely unobserved.
-
-    90% of the exact |p - 0.5| at which H2(p) = ``max_bits``, so the kernels can skip
-    those cells without a logarithm and still decide every other cell exactly.
-    """
+def observed_halfwidth(max_bits: float) -> float:
+    """The |p - 0.5| at which H2(p) = ``max_bits``: the entropy is symmetric about 0.5 and falls with
+    |p - 0.5|, so a cell is observed (eq. 10) about when it lies farther than this from 0.5."""
     if max_bits >= 1.0:
         return 0.0
-    exact = brentq(lambda d: float(cell_entropy(0.5 + d)) - max_bits, 0.0, 0.5, xtol=1e-15)
-    return 0.9 * exact
+    return brentq(lambda d: float(cell_entropy(0.5 + d)) - max_bits, 0.0, 0.5, xtol=1e-15)
+
+
+def unobserved_halfwidth(max_bits: float) -> float:
+    """A half-width around p = 0.5 inside which every cell is surely unobserved: 90% of
+    :func:`observed_halfwidth`, so the kernels can skip those cells without a logarithm and still
+    decide every other cell exactly."""
+    return 0.9 * observed_halfwidth(max_bits)
 
 
 def information_and_observed(p_flat: np.ndarray, observed_tol: float) -> tuple[float, int]:
@@ -97,8 +100,18 @@ def information_and_observed(p_flat: np.ndarray, observed_tol: float) -> tuple[f
 
 
 def observed_cells(p, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:
-    """Boolean mask of the cells that count as observed in eq. (10)."""
-    return cell_entropy(p) < max_entropy_bits(observed_tol)
+    """Boolean mask of the cells that count as observed in eq. (10): ``H2(p) < max_entropy_bits``.
+
+    Decided by |p - 0.5| outside a band of +-10% round :func:`observed_halfwidth`, and by the
+    entropy itself inside it (the same cells, with a logarithm for few of them)."""
+    p = np.asarray(p, dtype=np.float64)
+    max_bits = max_entropy_bits(observed_tol)
+    distance = np.abs(p - 0.5)
+    halfwidth = observed_halfwidth(max_bits)
+    observed = distance > 1.1 * halfwidth
+    band = ~(distance <= 0.9 * halfwidth) & ~observed  # NaN included: the entropy rule decides it too
+    observed[band] = cell_entropy(p[band]) < max_bits
+    return observed
 
 
 def mean_information(p, *, logodds: bool = False, lut=None, observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:

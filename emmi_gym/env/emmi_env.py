@@ -8,7 +8,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .. import certainty
-from ..evaluation import absolute_trajectory_error, map_accuracy, oracle_accuracy, wall_consistency
+from ..evaluation import absolute_trajectory_error, map_accuracy, oracle_scores
 from ..grid import GridGeometry
 from ..navigation.candidates import Target
 from ..oracle import OracleMap
@@ -237,9 +237,8 @@ class EmmiEnv(gym.Env):
         known_free = certainty.observed_cells(self._expected) & (self._expected < 0.5)
         self._coverage = float(np.count_nonzero(known_free & self._reachable)) / self._n_reachable
         self._map_accuracy = map_accuracy(self._expected, self.truth.grid)
-        oracle = self._oracle.probabilities()
-        self._oracle_accuracy = oracle_accuracy(self._expected, oracle)
-        self._wall_consistency = wall_consistency(self._expected, oracle, self.geometry.resolution)
+        self._oracle_accuracy, self._wall_consistency = oracle_scores(self._expected, self._oracle.probabilities(),
+                                                                      self.geometry.resolution)
         self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
                                               align=False)
         if self.config.action_mode == "waypoint":
