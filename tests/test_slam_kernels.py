@@ -215,10 +215,14 @@ def test_scan_loglik_matches_twin(seed, radius):
     offsets = np.empty((30, 4))
     n = MT.beam_offsets(theta, ranges, angles, 3.0, RES, offsets)
     s = settings(radius)
-    got = MT.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, s)
+    got = MT.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, s, -np.inf)
     want = twin_loglik(grid, hits, x, y, theta, ranges, angles, 3.0, radius, 0.075)
     assert got[1] == want[1]
     assert got[0] == pytest.approx(want[0], rel=1e-9, abs=1e-9)
+    # with a floor below the value the whole scan is scored; at or above it the search may stop
+    assert MT.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, s, want[0] - 1.0) == got
+    cut, flag = MT.scan_loglik(grid, hits, x / RES, y / RES, offsets, n, s, want[0] + 1.0)
+    assert cut <= want[0] + 1.0 and flag == -1
 
 
 def twin_hill_climb(grid, hits, start, ranges, angles, mean, precision, lstep, astep, refinements, iterations):

@@ -124,7 +124,7 @@ def nearest_surface_d2(grid, hits, hx, hy, back_x, back_y, window):
 
 
 @nb.njit(cache=True)
-def scan_loglik(grid, hits, gx, gy, offsets, n_beams, s):
+def scan_loglik(grid, hits, gx, gy, offsets, n_beams, s, floor):
     """Log-likelihood of a scan on one grid, the laser at grid position (gx, gy).
 
     Each hit beam whose end point has a surface point within ``match_radius``
@@ -133,6 +133,11 @@ def scan_loglik(grid, hits, gx, gy, offsets, n_beams, s):
     as if it were ``likelihood_null_distance`` off (GMapping's nullLikelihood: a fixed cost
     for a beam that finds nothing, whatever the cell size). Returns (log-likelihood,
     matched beams).
+
+    Every beam lowers the sum, so once it is at or below ``floor`` no later beam can lift
+    it back: the search stops there and returns (the partial sum, -1). A climb passes the
+    value to beat (a bound, as in branch and bound) and skips most of the beams of the
+    moves that do not help; ``-inf`` scores every beam.
     """
     h, w = grid.shape
     total = 0.0
@@ -150,6 +155,8 @@ def scan_loglik(grid, hits, gx, gy, offsets, n_beams, s):
             total -= d2 * s.scale
         else:
             total -= s.null2 * s.scale
+        if total <= floor:
+            return total, -1
     return total, matched
 
 
@@ -190,26 +197,29 @@ def _prior_quadratic(x, y, theta, mean, precision):
 
 
 @nb.njit(cache=True)
-def log_target(grid, hits, pose, offsets, n_beams, s, mean, precision):
+def log_target(grid, hits, pose, offsets, n_beams, s, mean, precision, floor):
     """log p(z | m, x) + log p(x | x_{t-1}, u) up to a constant: the optimal proposal's log-density.
 
-    ``offsets`` must be those of ``pose[2]``. Returns (value, matched beams). The motion
-    term keeps the estimate where the scan says nothing (along a plain corridor).
+    ``offsets`` must be those of ``pose[2]``. Returns (value, matched beams), or (a value
+    at or below ``floor``, -1) as soon as the value cannot exceed ``floor``
+    (:func:`scan_loglik`). The motion term keeps the estimate where the scan says nothing
+    (along a plain corridor).
     """
     gx = (pose[0] - s.origin_x) / s.resolution
     gy = (pose[1] - s.origin_y) / s.resolution
-    ll, matched = scan_loglik(grid, hits, gx, gy, offsets, n_beams, s)
-    return ll - 0.5 * _prior_quadratic(pose[0], pose[1], pose[2], mean, precision), matched
+    prior = 0.5 * _prior_quadratic(pose[0], pose[1], pose[2], mean, precision)
+    ll, matched = scan_loglik(grid, hits, gx, gy, offsets, n_beams, s, floor + prior)
+    return ll - prior, matched
 
 
 @nb.njit(cache=True)
-def _objective(coarse_stage, grid, hits, coarse, pose, offsets, n_beams, s, mean, precision):
-    """What a climb maximises: :func:`coarse_score` in the coarse stage, else :func:`log_target`.
-    Returns (value, matched beams; 0 in the coarse stage)."""
+def _objective(coarse_stage, grid, hits, coarse, pose, offsets, n_beams, s, mean, precision, floor):
+    """What a climb maximises: :func:`coarse_score` in the coarse stage, else :func:`log_target`
+    (cut short at ``floor``). Returns (value, matched beams; 0 in the coarse stage)."""
     if coarse_stage:
         return coarse_score(coarse, s.block, (pose[0] - s.origin_x) / s.resolution,
                             (pose[1] - s.origin_y) / s.resolution, offsets, n_beams), 0
-    return log_target(grid, hits, pose, offsets, n_beams, s, mean, precision)
+    return log_target(grid, hits, pose, offsets, n_beams, s, mean, precision, floor)
 
 
 @nb.njit(cache=True)
@@ -221,7 +231,7 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
     turned = np.empty((ranges.size, 4))
     pose = start.copy()
     n = beam_offsets(pose[2], ranges, angles, max_range, s.resolution, current)
-    best, matched = _objective(coarse_stage, grid, hits, coarse, pose, current, n, s, mean, precision)
+    best, matched = _objective(coarse_stage, grid, hits, coarse, pose, current, n, s, mean, precision, -np.inf)
     lstep, astep = linear_step, angular_step
     refinement = 0
     candidate = np.empty(3)
@@ -239,8 +249,8 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
                 offsets = turned
             else:
                 candidate[axis] += sign * lstep
-            value, hit = _objective(coarse_stage, grid, hits, coarse, candidate, offsets, n, s, mean, precision)
-            if value > best:
+            value, hit = _objective(coarse_stage, grid, hits, coarse, candidate, offsets, n, s, mean, precision, best)
+            if hit >= 0 and value > best:  # hit < 0: cut short, not better
                 best, matched = value, hit
                 best_pose[:] = candidate
                 improved = True
@@ -344,13 +354,13 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
                          max_range, s, motion_means[i], motion_precisions[i])
     n = beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, offsets[1])
     centre, matched = log_target(grid, cell_hits, best_pose, offsets[1], n, s, motion_means[i],
-                                 motion_precisions[i])
+                                 motion_precisions[i], -np.inf)
     matched_flags[i] = matched >= min_matched
     if not matched_flags[i]:
         n = beam_offsets(motion_samples[i, 2], ranges, angles, max_range, s.resolution, offsets[0])
         gx = (motion_samples[i, 0] - s.origin_x) / s.resolution
         gy = (motion_samples[i, 1] - s.origin_y) / s.resolution
-        ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s)
+        ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s, -np.inf)
         new_poses[i] = motion_samples[i]
         log_increments[i] = s.exponent * ll
         return
@@ -362,7 +372,8 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
         for axis in range(3):
             pose[axis] = best_pose[axis] + stencil[k, axis]
         t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
-        value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, motion_means[i], motion_precisions[i])
+        value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, motion_means[i], motion_precisions[i],
+                              -np.inf)
         scores[k] = value + motion_lognorms[i]
         if scores[k] > top:
             top = scores[k]
