@@ -2,7 +2,7 @@
 
     python scripts/slam_benchmark.py [--data ../shared/datasets/radish-noisy] [--logs intel aces]
         [--seeds 0 1 2] [--particles 15] [--resolution 0.05] [--max-range 30] [--preset radish-noisy]
-        [--slam '{"insertion_range": 8}'] [--out slam_benchmark] [--jobs 1]
+        [--slam '{"insertion_range": 8}'] [--filter-seeds 0 1 2] [--out slam_benchmark] [--jobs 1]
 
 Every keyframe is an update (linear_update = angular_update = 0, as GMapping's
 ``-linearUpdate 0 -angularUpdate 0``). For each log and seed it prints the best
@@ -10,7 +10,9 @@ particle's ATE (aligned, against the TRUEPOS lines), dead reckoning's ATE, the m
 and maximum milliseconds per update (whole update, and of it the certainty metrics),
 the resamplings, and writes the best particle's map as PNG beside the corrected
 map's picture, and its trajectory in the TUM format. Run with ``--jobs 1`` for the
-timings (parallel runs share the cores).
+timings (parallel runs share the cores). With several ``--filter-seeds`` (the filter's own
+random draws) each log and seed runs once per filter seed, and a last table gives each
+log's median ATE over all its runs: one run says little about a change to the filter.
 """
 
 from __future__ import annotations
@@ -32,13 +34,15 @@ LOGS = ("intel", "aces", "csail", "freiburg-079")
 
 
 
-def run_one(path: Path, config: RBPFConfig, max_range: float, out: Path) -> dict:
+def run_one(path: Path, config: RBPFConfig, max_range: float, out: Path, filter_seed: int) -> dict:
     log = read_log(path)
     t0 = time.perf_counter()
-    result = replay(log, config, max_range=max_range, seed=0)
+    result = replay(log, config, max_range=max_range, seed=filter_seed)
     wall = time.perf_counter() - t0
     rows = result.rows[1:]
     name = path.name.removesuffix(".gz").removesuffix(".log")
+    if filter_seed:
+        name += f"-filter{filter_seed}"
     write_map_png(result, out / f"{name}-best_map.png", title=f"{name}: best particle's map")
     write_tum(result, out / f"{name}-best.tum")
     return dict(log=name, updates=len(result.rows), ate=result.ate(),
@@ -63,6 +67,7 @@ def main() -> None:
                         help="readings at or beyond it are no echo (the logs mark them 81.83 m or 50 m)")
     parser.add_argument("--preset", default="radish-noisy", help="RBPFConfig preset ('none': the defaults)")
     parser.add_argument("--slam", default="{}", help="further RBPFConfig fields as JSON")
+    parser.add_argument("--filter-seeds", nargs="+", type=int, default=[0], help="the filter's random seeds")
     parser.add_argument("--out", default="slam_benchmark")
     parser.add_argument("--jobs", type=int, default=1)
     args = parser.parse_args()
@@ -76,10 +81,11 @@ def main() -> None:
         picture = corrected / f"{name}-corrected.png"
         if picture.exists():
             shutil.copy(picture, out / picture.name)
-    paths = [data / f"{name}-seed{seed}.log.gz" for name in args.logs for seed in args.seeds]
+    runs = [(data / f"{name}-seed{seed}.log.gz", f) for name in args.logs for seed in args.seeds
+            for f in args.filter_seeds]
     with ProcessPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(run_one, paths, [config] * len(paths), [args.max_range] * len(paths),
-                                [out] * len(paths)))
+        results = list(pool.map(run_one, [p for p, _ in runs], [config] * len(runs), [args.max_range] * len(runs),
+                                [out] * len(runs), [f for _, f in runs]))
     print(f"{args.particles} particles, {args.resolution} m cells, every keyframe an update, max range "
           f"{args.max_range} m, preset {args.preset}, overrides {args.slam}")
     print("| log | updates | dead reckoning ATE (m) | RBPF ATE (m) | median ms/update | max ms | "
@@ -88,6 +94,11 @@ def main() -> None:
     for r in results:
         print(f"| {r['log']} | {r['updates']} | {r['dead_reckoning']:.2f} | {r['ate']:.3f} | {r['median_ms']:.1f} | "
               f"{r['max_ms']:.1f} | {r['matching_ms']:.1f} / {r['insertion_ms']:.1f} / {r['metrics_ms']:.1f} | {r['resamplings']} | {r['resampling_max_ms']:.1f} |")
+    if len(args.filter_seeds) > 1:
+        print("\n| log | runs | median ATE (m) | min - max |\n| --- | --- | --- | --- |")
+        for name in args.logs:
+            ates = [r["ate"] for r in results if r["log"].startswith(f"{name}-seed")]
+            print(f"| {name} | {len(ates)} | {np.median(ates):.3f} | {min(ates):.3f} - {max(ates):.3f} |")
     (out / "results.json").write_text(json.dumps(results, indent=1))
 
 

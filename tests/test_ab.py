@@ -52,8 +52,8 @@ def test_emmi_rises_after_closing_the_loop_and_not_after_exploring(experiment):
     a, b = column(runs, "emmi_change", "A"), column(runs, "emmi_change", "B")
     mean, low, _, n = mean_interval(a - b)
     assert n == SEEDS and low > 0, (a, b)       # the paired 95% interval of A - B excludes zero
-    assert np.mean(a) > 0.03, a                  # the loop closure raises EMMI (full run: +0.056)
-    assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: -0.013)
+    assert np.mean(a) > 0.03, a                  # the loop closure raises EMMI (full run: +0.045)
+    assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: -0.015)
 
 
 def test_pose_entropy_falls_under_a_and_not_under_b(experiment):
@@ -69,7 +69,8 @@ def test_joint_entropy_does_not_prefer_closing_the_loop(experiment):
 
 
 def test_the_new_area_is_mapped_better_after_the_loop_was_closed(experiment):
-    """Its expected map when the robot arrives there (full run: +0.023 [+0.004, +0.042] over 20 seeds)."""
+    """Its expected map when the robot arrives there (full run: +0.008 [-0.003, +0.018] over 20 seeds,
+    14 of 20: a small effect on this world; docs/ab.md)."""
     _, runs = experiment
     diff = paired(runs, "new_area_accuracy_on_arrival")
     assert np.mean(diff) > 0, diff

@@ -269,8 +269,8 @@ def test_decision_point_offers_the_papers_choice():
             continue
         np.testing.assert_allclose(row[2:5] * [side, side, 2 * side],
                                    [t.x - pose[0], t.y - pose[1], t.travel_cost], atol=1e-4)
-        if t.kind == "revisit":  # a loop the particles disagree about: 0.2-0.5 m at the decision point
-            assert row[6] >= 1 / 3 - 1e-6 and 0.2 < row[7] * 0.5 < 1.0
+        if t.kind == "revisit":  # a loop the particles disagree about: more than a cell (0.1 m), less than 1 m
+            assert row[6] >= 1 / 3 - 1e-6 and 0.1 < row[7] * 0.5 < 1.0
         else:
             assert row[5] > 0 and row[6] == row[7] == 0
 
@@ -385,6 +385,31 @@ def test_a_wall_seen_on_the_way_makes_the_robot_replan():
     assert not path_obstructed(em, geometry, detour, 0.2)
     assert max(y for _, y in detour) > 5.2 or min(y for _, y in detour) < 0.8  # round an end of the wall
     assert np.hypot(*np.subtract(detour[-1], (9.0, 3.0))) < 0.1
+
+
+def test_a_loop_through_unseen_space_is_offered_by_the_length_of_its_route():
+    """A U-shaped path of 22 m whose start lies 10 m away, 8 m of them unknown: the route is 10 m
+    (the loop closes 2.2 times its length), though the planner's cost, twice per unknown metre, is
+    18 m, which alone would fail the 1.5 ratio."""
+    from emmi_gym.grid import GridGeometry
+    from emmi_gym.navigation.candidates import LOOP_RATIO, revisit_targets
+    from emmi_gym.navigation.planner import travel_costs
+
+    geometry = GridGeometry(0.1, 0.0, 0.0, 140, 100)     # 10 m x 14 m, unknown
+    em = np.full(geometry.shape, 0.5)
+    em[10:30, 10:90] = 0.1                               # the corridors driven, known free: y = 2 (x 2..8) ...
+    em[10:130, 70:90] = 0.1                              # ... x = 8 (y 2..12) ...
+    em[110:130, 10:90] = 0.1                             # ... and y = 12 (x 8..2)
+    path = np.array([(x, 2.0, 0.0) for x in np.arange(2.0, 8.0, 0.5)]
+                    + [(8.0, y, 0.0) for y in np.arange(2.0, 12.0, 0.5)]
+                    + [(x, 12.0, 0.0) for x in np.arange(8.0, 1.9, -0.5)])
+    costs = travel_costs(em, geometry, path[-1, :2], 0.2)
+    route = costs.route_lengths(path[:1, :2])[0]
+    walked = np.array([tuple(path[-1, :2])] + costs.path_to(*path[0, :2], spacing=0.1))
+    assert route == pytest.approx(np.hypot(*np.diff(walked, axis=0).T).sum(), abs=0.15)
+    assert 9.8 < route < 10.6 and costs.cost_to(*path[0, :2]) > 22.0 / LOOP_RATIO
+    start = [t for t in revisit_targets(path, costs) if np.hypot(t.x - 2.0, t.y - 2.0) < 1.0]
+    assert start and 1.0 - 1.0 / start[0].gain >= 1.0 - 1.0 / LOOP_RATIO
 
 
 def test_loop_closing_target_is_reached_without_pushing_into_walls():

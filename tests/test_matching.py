@@ -40,3 +40,53 @@ def test_matcher_recovers_a_pose_displaced_by_40_cm_and_4_degrees(scans, resolut
                        laser.config.angles[climb], laser.config.max_range, settings, start, flat_prior)
     assert math.hypot(*(pose[:2] - TRUE_POSE[:2])) < 0.05
     assert abs(pose[2] - TRUE_POSE[2]) < math.radians(1.0)
+
+
+def _scan_matched_fraction(grid, hits, geometry, pose, ranges, angles, max_range):
+    """The share of the echoes whose end point finds a surface within the match radius."""
+    settings = MT.match_settings(RBPFConfig(resolution=geometry.resolution), geometry.origin_x, geometry.origin_y,
+                                 geometry.resolution, 1)
+    offsets = np.empty((ranges.size, 4))
+    n = MT.beam_offsets(pose[2], ranges, angles, max_range, geometry.resolution, offsets)
+    gx, gy = (pose[0] - geometry.origin_x) / geometry.resolution, (pose[1] - geometry.origin_y) / geometry.resolution
+    _, matched = MT.scan_loglik(grid, hits, gx, gy, offsets, n, settings, -np.inf)
+    return matched / n
+
+
+@pytest.mark.parametrize("resolution", [0.05, 0.1])
+def test_beams_grazing_a_wall_match_it(resolution):
+    """Down a corridor many beams meet the walls at a glancing angle. With a map made from scans
+    every 0.5 m along the corridor, a noiseless scan taken in between must find its walls with
+    nearly every echo; with GMapping's test (the one cell straight back along the beam must be free)
+    a grazing beam often does not: 88-94% of the echoes here, a tenth of each scan scored as misses."""
+    world = load_world("loop_corridor")
+    laser = Simulator(world, laser=LaserConfig(fov=2 * math.pi, n_beams=360, max_range=8.0, range_sigma=0.0,
+                                               drop_probability=0.0)).laser
+    config = RBPFConfig(resolution=resolution)
+    geometry = GridGeometry.covering(*world.bounds, resolution, margin=2.0)
+    maps = ParticleMaps(geometry, 1, CellCodes.from_config(config), 1)
+    for x in np.arange(5.0, 16.0, 0.5):  # along the start corridor
+        pose = np.array([x, 1.0, 0.0])
+        maps.insert(pose[None], laser.true_ranges(pose), laser.config.angles, 8.0, 0.0)
+    for x in (9.25, 10.1, 11.37):
+        pose = np.array([x, 1.03, 0.01])
+        fraction = _scan_matched_fraction(maps.codes[0], maps.hits[0], geometry, pose, laser.true_ranges(pose),
+                                          laser.config.angles, 8.0)
+        assert fraction > 0.99
+
+
+def test_the_far_face_of_a_thick_wall_is_not_a_surface():
+    """A beam that ends inside a wall, past its middle, is not matched to the far face (seen only
+    from the other side): its nearest surface seen from the laser is the near face, 0.2 m back."""
+    resolution = 0.05
+    grid = np.full((60, 60), -40, dtype=np.int8)
+    grid[:, 20:25] = 40  # a 0.25 m wall, free on both sides
+    hits = np.zeros((60, 60, 3), dtype=np.int8)
+    pose = np.array([0.5, 1.5, 0.0])  # left of the wall, looking at it
+    wall_x = 20 * resolution
+    beyond = np.array([wall_x - pose[0] + 4.5 * resolution])  # ends in the far face's cell
+    at_face = np.array([wall_x - pose[0] + 0.5 * resolution])
+    angles = np.zeros(1)
+    geometry = GridGeometry(resolution, 0.0, 0.0, 60, 60)
+    assert _scan_matched_fraction(grid, hits, geometry, pose, at_face, angles, 8.0) == 1.0
+    assert _scan_matched_fraction(grid, hits, geometry, pose, beyond, angles, 8.0) == 0.0

@@ -175,13 +175,13 @@ def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, radius, sigm
             continue
         c, s = math.cos(theta + a), math.sin(theta + a)
         hx, hy = (x + r * c) / RES, (y + r * s) / RES
-        bx, by = round(-math.sqrt(2) * c), round(-math.sqrt(2) * s)
+        sx, sy = -int(np.sign(c)), -int(np.sign(s))  # the laser's side
         hcx, hcy = math.floor(hx), math.floor(hy)
         best = math.inf
         if window + 1 <= hcx < w - window - 1 and window + 1 <= hcy < h - window - 1:
             for row in range(hcy - window, hcy + window + 1):
                 for col in range(hcx - window, hcx + window + 1):
-                    if grid[row, col] > 0 and grid[row + by, col + bx] < 0:
+                    if grid[row, col] > 0 and (grid[row, col + sx] < 0 or grid[row + sy, col] < 0):
                         mx = col + 0.5 + hits[row, col, 0] / 254
                         my = row + 0.5 + hits[row, col, 1] / 254
                         best = min(best, (mx - hx) ** 2 + (my - hy) ** 2)

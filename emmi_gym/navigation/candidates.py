@@ -17,7 +17,7 @@ from .planner import FREE_P, OCCUPIED_P, CostMap
 MIN_FRONTIER_CELLS = 4        # frontiers shorter than this (cells) are noise
 MIN_TRAVEL = 1.0              # m: a frontier target nearer than this (straight line) is where the robot already is
 LOOP_MIN_PATH = 12.0          # m of path between a past pose and the robot for a revisit to close a loop
-LOOP_RATIO = 1.5              # ... and at least this ratio of path length to travel cost
+LOOP_RATIO = 1.5              # ... and at least this ratio of path length to the route there (metres)
 REVISIT_SPACING = 3.0         # m between two revisit targets
 BLOCKED_RADIUS = 1.0          # m round a target whose attempt ended blocked: no target there any more
 
@@ -30,7 +30,7 @@ class Target:
     x: float
     y: float
     travel_cost: float
-    gain: float  # frontier: its length in cells; revisit: path length / travel cost
+    gain: float  # frontier: its length in cells; revisit: path length closed / length of the route there
     path_index: int | None = None  # revisit: the update index of the estimated path it revisits
 
     @property
@@ -75,9 +75,11 @@ def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
     """Past poses of the estimated path that would close a loop if revisited.
 
     A pose qualifies when at least ``LOOP_MIN_PATH`` metres of path lie between it and
-    the robot, travelling there costs at most 1/``LOOP_RATIO`` of that, and the recent
-    path (those last metres) never came within ``REVISIT_SPACING`` of it: an area just
-    revisited closes nothing more.
+    the robot, the planned route there is at most 1/``LOOP_RATIO`` of that long, and the
+    recent path (those last metres) never came within ``REVISIT_SPACING`` of it: an area
+    just revisited closes nothing more. The route is measured in metres, not in the
+    planner's cost, which doubles across unknown cells: a route that closes a loop
+    through a stretch not yet seen would otherwise count as twice its length.
     """
     if len(path) < 2:
         return []
@@ -85,14 +87,15 @@ def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
     along = np.concatenate([[0.0], np.cumsum(steps)])
     behind = along[-1] - along  # path length from each past pose to the robot
     recent = path[behind < LOOP_MIN_PATH, :2]
-    candidates = []
+    reachable = {}  # pose index -> travel cost
     for k in np.flatnonzero(behind >= LOOP_MIN_PATH):
-        if np.min(np.hypot(*(recent - path[k, :2]).T)) < REVISIT_SPACING:
-            continue
-        cost = costs.cost_to(path[k, 0], path[k, 1])
-        if MIN_TRAVEL <= cost < np.inf and behind[k] >= LOOP_RATIO * cost:
-            candidates.append(Target("revisit", float(path[k, 0]), float(path[k, 1]), cost,
-                                     behind[k] / max(cost, 0.5), int(k)))
+        if np.min(np.hypot(*(recent - path[k, :2]).T)) >= REVISIT_SPACING:
+            cost = costs.cost_to(path[k, 0], path[k, 1])
+            if MIN_TRAVEL <= cost < np.inf:
+                reachable[k] = cost
+    lengths = costs.route_lengths(path[list(reachable), :2])
+    candidates = [Target("revisit", float(path[k, 0]), float(path[k, 1]), cost, behind[k] / max(length, 0.5), int(k))
+                  for (k, cost), length in zip(reachable.items(), lengths) if behind[k] >= LOOP_RATIO * length]
     candidates.sort(key=lambda t: (-t.gain, t.travel_cost))
     chosen: list[Target] = []
     for t in candidates:

@@ -57,6 +57,30 @@ class CostMap:
         return [(float(xs[k]), float(ys[k])) for k in keep]
 
 
+    def route_lengths(self, xy: np.ndarray) -> np.ndarray:
+        """Length in metres of the cheapest route to each point (n, 2); inf where unreachable.
+
+        The cost weighs unknown cells and closeness to walls; this is the distance driven.
+        All routes are walked back along the traceback together, one step per round.
+        """
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        rows, cols = self.geometry.cell_of(xy[:, 0], xy[:, 1])
+        rows, cols = np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
+        lengths = np.full(len(xy), np.inf)
+        inside = self.geometry.inside(rows, cols)
+        inside[inside] = np.isfinite(self.cumulative[rows[inside], cols[inside]])
+        lengths[inside] = 0.0
+        step_lengths = np.hypot(*self.offsets.T) * self.geometry.resolution
+        walking = np.flatnonzero(inside)
+        r, c = rows[walking], cols[walking]
+        while walking.size:
+            step = self.traceback[r, c]
+            going = step >= 0
+            walking, r, c, step = walking[going], r[going], c[going], step[going]
+            lengths[walking] += step_lengths[step]
+            r, c = r - self.offsets[step, 0], c - self.offsets[step, 1]
+        return lengths
+
     def _cells_to(self, row: int, col: int) -> list[tuple[int, int]]:
         """The cells from the start to (row, col), walking the traceback back (``MCP.traceback``'s walk)."""
         if not np.isfinite(self.cumulative[row, col]):

@@ -65,11 +65,12 @@ def match_settings(config, origin_x: float, origin_y: float, resolution: float, 
 def beam_offsets(theta, ranges, angles, max_range, resolution, out):
     """End-point offsets of the beams that hit something, for a laser heading ``theta``.
 
-    Fills ``out[k] = (dx, dy, back_x, back_y)`` in grid cells for the k-th hit beam:
-    the end point is the laser's grid position plus (dx, dy); (back_x, back_y) is the
-    whole-cell step back towards the laser, sqrt(2) cells along the beam rounded
-    (GMapping's freeCellRatio), so never (0, 0). Returns the number of hit beams.
-    Depends on the heading only, so moves in x and y reuse it.
+    Fills ``out[k] = (dx, dy, side_x, side_y)`` in grid cells for the k-th hit beam:
+    the end point is the laser's grid position plus (dx, dy); (side_x, side_y) are the
+    signs of the direction back towards the laser (0 for a beam exactly along an axis),
+    which name the 4-neighbours of a cell on the laser's side (see :func:`_try_cell`).
+    Returns the number of hit beams. Depends on the heading only, so moves in x and y
+    reuse it.
     """
     n = 0
     for b in range(ranges.size):
@@ -80,17 +81,26 @@ def beam_offsets(theta, ranges, angles, max_range, resolution, out):
         c, s = math.cos(a), math.sin(a)
         out[n, 0] = r * c / resolution
         out[n, 1] = r * s / resolution
-        out[n, 2] = round(-math.sqrt(2.0) * c)
-        out[n, 3] = round(-math.sqrt(2.0) * s)
+        out[n, 2] = -np.sign(c)
+        out[n, 3] = -np.sign(s)
         n += 1
     return n
 
 
 @nb.njit(cache=True, inline="always")
-def _try_cell(grid, hits, row, col, back_x, back_y, hx, hy, best):
+def _try_cell(grid, hits, row, col, side_x, side_y, hx, hy, best):
     """Squared distance from (hx, hy) to the cell's mean hit point if the cell is a surface seen
-    from the laser (occupied, its neighbour back towards the laser free), else ``best``."""
-    if grid[row, col] > 0 and grid[row + back_y, col + back_x] < 0:
+    from the laser, else ``best``.
+
+    A surface cell is occupied with a free 4-neighbour on the laser's side (``side_x``,
+    ``side_y``: the signs of the direction back to the laser; a sign of 0 names the cell
+    itself, which is occupied). GMapping asks for the one cell straight back along the beam
+    to be free, which a beam grazing a wall often does not find (that cell is the wall's
+    next cell): about a tenth of a corridor scan's beams then scored as misses, differently
+    from particle to particle. The far face of a thick wall still does not count: its free
+    neighbours face away from the laser.
+    """
+    if grid[row, col] > 0 and (grid[row, col + side_x] < 0 or grid[row + side_y, col] < 0):
         cell = hits[row, col]
         mx = col + 0.5 + np.float64(cell[0]) / OFFSET_SCALE
         my = row + 0.5 + np.float64(cell[1]) / OFFSET_SCALE
@@ -101,7 +111,7 @@ def _try_cell(grid, hits, row, col, back_x, back_y, hx, hy, best):
 
 
 @nb.njit(cache=True)
-def nearest_surface_d2(grid, hits, hx, hy, back_x, back_y, window):
+def nearest_surface_d2(grid, hits, hx, hy, side_x, side_y, window):
     """Squared distance (cells^2) from the end point (hx, hy) to the nearest surface point within
     ``window`` cells (Chebyshev), inf if none; the caller keeps window + 1 cells from the edge.
 
@@ -110,16 +120,16 @@ def nearest_surface_d2(grid, hits, hx, hy, back_x, back_y, window):
     and the search stops as soon as (k - 1)^2 >= the best distance found.
     """
     hcx, hcy = int(math.floor(hx)), int(math.floor(hy))
-    best = _try_cell(grid, hits, hcy, hcx, back_x, back_y, hx, hy, np.inf)
+    best = _try_cell(grid, hits, hcy, hcx, side_x, side_y, hx, hy, np.inf)
     for k in range(1, window + 1):
         if (k - 1) * (k - 1) >= best:
             break
         for j in range(-k, k + 1):
-            best = _try_cell(grid, hits, hcy - k, hcx + j, back_x, back_y, hx, hy, best)
-            best = _try_cell(grid, hits, hcy + k, hcx + j, back_x, back_y, hx, hy, best)
+            best = _try_cell(grid, hits, hcy - k, hcx + j, side_x, side_y, hx, hy, best)
+            best = _try_cell(grid, hits, hcy + k, hcx + j, side_x, side_y, hx, hy, best)
         for j in range(-k + 1, k):
-            best = _try_cell(grid, hits, hcy + j, hcx - k, back_x, back_y, hx, hy, best)
-            best = _try_cell(grid, hits, hcy + j, hcx + k, back_x, back_y, hx, hy, best)
+            best = _try_cell(grid, hits, hcy + j, hcx - k, side_x, side_y, hx, hy, best)
+            best = _try_cell(grid, hits, hcy + j, hcx + k, side_x, side_y, hx, hy, best)
     return best
 
 
