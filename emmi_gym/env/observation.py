@@ -125,7 +125,8 @@ def target_features(slots, loop_spreads, pose, bounds, resolution: float) -> np.
     (loop-closing) target; its offset from the estimated pose, (dx, dy) / the world's
     larger side; its travel cost / twice that side; a frontier's length (cells times
     ``resolution``) / 10 m; a revisit's loop strength 1 - route length / path length
-    closed (at least 1/3, see :data:`~emmi_gym.navigation.candidates.LOOP_RATIO`) and its ``loop_spreads`` entry / 0.5 m (the particles' disagreement about the
+    closed (at least 1/3, see :data:`~emmi_gym.navigation.candidates.LOOP_RATIO`) and
+    its ``loop_spreads`` entry / 0.5 m (the particles' disagreement about the
     robot's position relative to the revisited pose,
     :func:`~emmi_gym.certainty.loop_displacement_spread`: what closing the loop can
     resolve), both 0 for a frontier. Empty slots are all zeros.

@@ -56,7 +56,6 @@ class CostMap:
             keep.append(len(cells) - 1)
         return [(float(xs[k]), float(ys[k])) for k in keep]
 
-
     def route_lengths(self, xy: np.ndarray) -> np.ndarray:
         """Length in metres of the cheapest route to each point (n, 2); inf where unreachable.
 
