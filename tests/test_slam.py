@@ -2,11 +2,14 @@
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from emmi_gym import certainty
 from emmi_gym.evaluation import absolute_trajectory_error, map_accuracy, trajectory_alignment
 from emmi_gym.grid import GridGeometry
 from emmi_gym.slam import RBPF, CellCodes, ParticleMaps, RBPFConfig
+from emmi_gym.slam.resampling import survivors_in_place, systematic_resample
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world, rasterise
 
 SEEDS = range(6)
@@ -190,7 +193,7 @@ def test_incremental_emmi_equals_a_full_recomputation(seed):
     for step in range(6):
         random_scans(rng, maps, 2)
         if step % 2:
-            parents = rng.integers(0, 5, 5)
+            parents = survivors_in_place(rng.integers(0, 5, 5))
             before = maps.codes.copy(), maps.hits.copy(), maps.counts.copy()
             maps.resample(parents)
             np.testing.assert_array_equal(maps.codes, before[0][parents])
@@ -209,6 +212,24 @@ def test_incremental_emmi_equals_a_full_recomputation(seed):
         np.testing.assert_array_equal(maps.coarse, [[[int((g[r:r + 2, c:c + 2] > 0).sum()) for c in range(0, g.shape[1], 2)]
                                                      for r in range(0, g.shape[0], 2)] for g in maps.codes])
     assert 0 < maps.disputed_cells.size < maps.codes[0].size
+
+
+@given(st.integers(0, 2**31), st.integers(1, 30))
+def test_survivors_keep_their_slots_and_the_draw_its_copies(seed, m):
+    drawn = systematic_resample(np.random.default_rng(seed).random(m) ** 4 + 1e-12, np.random.default_rng(seed))
+    arranged = survivors_in_place(drawn)
+    np.testing.assert_array_equal(np.sort(arranged), np.sort(drawn))   # as many copies of each parent
+    survivors = np.unique(drawn)
+    np.testing.assert_array_equal(arranged[survivors], survivors)      # every survivor in its own slot
+    assert np.array_equal(arranged[arranged], arranged)
+
+
+def test_resampling_refuses_parents_that_would_overwrite_a_source():
+    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 10, 10), 3, CellCodes.from_config(RBPFConfig()))
+    with pytest.raises(ValueError, match="keep every survivor in its own slot"):
+        maps.resample(np.array([1, 0, 0]))  # particle 1's grid is read after slot 1 was overwritten
+    with pytest.raises(ValueError, match="3 particle indices"):
+        maps.resample(np.array([0, 3, 0]))
 
 
 def test_grids_grow_in_chunks_and_keep_cells_aligned():

@@ -192,21 +192,26 @@ DISPUTED = 1000
 
 
 @nb.njit(cache=True, inline="always")
-def _agrees(codes, hits, row, col):
-    """Whether every particle's grid holds the same code and the same mean hit point at (row, col)."""
-    c0 = codes[0, row, col]
-    for i in range(1, codes.shape[0]):
+def _agrees(codes, hits, particles, row, col):
+    """Whether the grids of ``particles`` hold the same code and the same mean hit point at (row, col)."""
+    first = particles[0]
+    c0 = codes[first, row, col]
+    for j in range(1, particles.size):
+        i = particles[j]
         if codes[i, row, col] != c0:
             return False
         for k in range(3):
-            if hits[i, row, col, k] != hits[0, row, col, k]:
+            if hits[i, row, col, k] != hits[first, row, col, k]:
                 return False
     return True
 
 
 @nb.njit(cache=True)
-def refresh_agreement(codes, hits, cells, status, agreed_counts, disputed, n_disputed, position):
+def refresh_agreement(codes, hits, particles, cells, status, agreed_counts, disputed, n_disputed, position):
     """Re-derive whether the particles agree on each cell of ``cells`` (flat indices, no repeats).
+
+    Only the grids of ``particles`` are compared (all of them, or after a resampling the
+    survivors, whose copies hold the same values).
 
     ``status`` (H, W) int16 holds an agreed cell's code, or DISPUTED; ``agreed_counts``
     (256) how many agreed cells hold each code (index code + 128); ``disputed[:n_disputed]``
@@ -221,8 +226,8 @@ def refresh_agreement(codes, hits, cells, status, agreed_counts, disputed, n_dis
         old = status[row, col]
         if old != DISPUTED:
             agreed_counts[old + 128] -= 1
-        if _agrees(codes, hits, row, col):
-            code = codes[0, row, col]
+        if _agrees(codes, hits, particles, row, col):
+            code = codes[particles[0], row, col]
             status[row, col] = code
             agreed_counts[code + 128] += 1
             p = position[row, col]
@@ -244,21 +249,27 @@ def refresh_agreement(codes, hits, cells, status, agreed_counts, disputed, n_dis
 @nb.njit(cache=True)
 def resample_cells(codes, hits, coarse, block, cells, parents):
     """Particle i takes particle ``parents[i]``'s code and mean hit point at each of ``cells`` (flat
-    indices), keeping the occupied-cell counts per block ``coarse`` current. Elsewhere every
-    grid already holds the same values, so nothing else needs copying."""
+    indices, increasing), keeping the occupied-cell counts per block ``coarse`` current.
+
+    ``parents`` keeps survivors in place (``parents[parents[i]] == parents[i]``), so a source
+    is never overwritten: each dead particle's grid is filled from its parent's, grid by grid
+    in memory order. Elsewhere every grid already holds the same values, so nothing else
+    needs copying.
+    """
     m, _, w = codes.shape
-    old_codes = np.empty(m, dtype=codes.dtype)
-    old_hits = np.empty((m, 3), dtype=hits.dtype)
-    for k in range(cells.size):
-        cell = cells[k]
-        row = cell // w
-        col = cell - row * w
-        for i in range(m):
-            old_codes[i] = codes[i, row, col]
-            old_hits[i] = hits[i, row, col]
-        for i in range(m):
-            new = old_codes[parents[i]]
-            if (old_codes[i] > 0) != (new > 0):
-                coarse[i, row // block, col // block] += 1 if new > 0 else -1
-            codes[i, row, col] = new
-            hits[i, row, col] = old_hits[parents[i]]
+    for i in range(m):
+        p = parents[i]
+        if p == i:
+            continue
+        source, target = codes[p], codes[i]
+        source_hits, target_hits, target_coarse = hits[p], hits[i], coarse[i]
+        for k in range(cells.size):
+            cell = cells[k]
+            row = cell // w
+            col = cell - row * w
+            new = source[row, col]
+            if (target[row, col] > 0) != (new > 0):
+                target_coarse[row // block, col // block] += 1 if new > 0 else -1
+            target[row, col] = new
+            for axis in range(3):
+                target_hits[row, col, axis] = source_hits[row, col, axis]

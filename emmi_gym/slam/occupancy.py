@@ -124,25 +124,34 @@ class ParticleMaps:
         self._serial, n_touched = _kernels.insert_scans(
             self.codes, self.hits, self.counts, self.coarse, self.block, poses, *rays, c.occupied, c.free, c.clamp,
             g.origin_x, g.origin_y, g.resolution, self._stamp, self._serial, self._touched)
-        self._refresh(self._touched[:n_touched])
+        self._refresh(self._touched[:n_touched], np.arange(self.n_particles))
 
-    def _refresh(self, cells: np.ndarray) -> None:
-        """Re-derive the agreement of ``cells``, then keep the disputed list in memory order (passes over
-        it then read the grids front to back; timsort takes the mostly sorted list in near-linear time)."""
-        self._n_disputed = _kernels.refresh_agreement(self.codes, self.hits, cells, self.status, self.agreed_counts,
-                                                      self._disputed, self._n_disputed, self._position)
+    def _refresh(self, cells: np.ndarray, particles: np.ndarray) -> None:
+        """Re-derive the agreement of ``cells`` among the grids of ``particles``, then keep the disputed
+        list in memory order (passes over it then read the grids front to back; timsort takes the
+        mostly sorted list in near-linear time)."""
+        self._n_disputed = _kernels.refresh_agreement(self.codes, self.hits, particles, cells, self.status,
+                                                      self.agreed_counts, self._disputed, self._n_disputed,
+                                                      self._position)
         listed = self.disputed_cells
         listed.sort(kind="stable")
         self._position.reshape(-1)[listed] = np.arange(listed.size, dtype=np.int32)
 
-    def resample(self, indices: np.ndarray) -> None:
-        """Particle i takes the grid of particle ``indices[i]``: only the disputed cells are copied
-        (elsewhere all grids already hold the same values), then their agreement is re-derived."""
-        indices = np.ascontiguousarray(indices, dtype=np.int64)
+    def resample(self, parents: np.ndarray) -> None:
+        """Particle i takes the grid of particle ``parents[i]``, an arrangement that keeps survivors in
+        place (:func:`~emmi_gym.slam.resampling.survivors_in_place`): only the dead particles'
+        disputed cells are copied (elsewhere all grids already hold the same values), then the
+        agreement of those cells is re-derived among the survivors."""
+        parents = np.ascontiguousarray(parents, dtype=np.int64)
+        if parents.shape != (self.n_particles,) or not np.all((parents >= 0) & (parents < self.n_particles)):
+            raise ValueError(f"parents must be {self.n_particles} particle indices, got {parents!r:.200}")
+        if not np.array_equal(parents[parents], parents):
+            raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
+                             "arrange a draw with resampling.survivors_in_place")
         cells = self.disputed_cells.copy()
-        _kernels.resample_cells(self.codes, self.hits, self.coarse, self.block, cells, indices)
-        self.counts = self.counts[indices]
-        self._refresh(cells)
+        _kernels.resample_cells(self.codes, self.hits, self.coarse, self.block, cells, parents)
+        self.counts = self.counts[parents]
+        self._refresh(cells, np.unique(parents))
 
     def expected_map(self, weights: np.ndarray) -> np.ndarray:
         """EM, eq. (6), (H, W) float64, for normalised ``weights``: an agreed cell's own probability, the

@@ -34,7 +34,7 @@ from ..validation import MAX_LASER_RANGE, Real, check_value
 from . import _matching
 from .config import RBPFConfig
 from .occupancy import ParticleMaps
-from .resampling import systematic_resample
+from .resampling import survivors_in_place, systematic_resample
 from .sensor_model import CellCodes
 from .threads import run_in_chunks
 
@@ -230,7 +230,7 @@ class RBPF:
         # 4: selective resampling
         resampled = neff < cfg.resample_threshold * m
         if resampled:
-            self._resample(systematic_resample(self.weights, self.rng))
+            self._resample(survivors_in_place(systematic_resample(self.weights, self.rng)))
         t3 = time.perf_counter()
         phases["resampling"] = t3 - t2
         # 5: map update and path

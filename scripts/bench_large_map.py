@@ -1,0 +1,102 @@
+"""Time the RBPF on a long-range laser over a building-sized area: 361 beams, 180 degrees, 30 m.
+
+    python scripts/bench_large_map.py [--particles 15] [--resolution 0.05] [--metres 323]
+                                      [--data ../shared/datasets/carmen] [--out aces_tour.log]
+
+Data: the ACES building world (``load_world("aces")``, 57 m x 57 m) driven by the
+simulator along the corrected ACES trajectory (its keyframe poses, from
+``aces-corrected.log.gz``, as waypoints; ``--metres`` of it), with a SICK-like laser
+(361 beams over 180 degrees, readings to 30 m) and the simulator's noisy odometry.
+``--out`` also writes the drive as a CARMEN log (``emmi-gym replay`` reads it). The
+filter then runs over the drive on a 60 m x 60 m grid round the building, single thread
+for the proposals' timing to be comparable (``EMMI_GYM_THREADS`` is not touched: set it
+to 1 for that). It prints the median update with its phases (the first 10 updates, numba
+loading, are not timed, and a short warm-up run loads the resampling's), the longest resampling, the resamplings and the ATE of the best
+particle's path against the truth.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from emmi_gym import carmen
+from emmi_gym.grid import GridGeometry
+from emmi_gym.slam import RBPF, RBPFConfig
+from emmi_gym.slam.replay import laser_stream
+from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world, write_carmen
+
+LASER = LaserConfig(fov=math.pi, n_beams=361, max_range=30.0)
+
+
+def tour(data: Path, metres: float, spacing: float = 1.0) -> list[tuple[float, float]]:
+    """Waypoints ``spacing`` metres apart along the first ``metres`` of the corrected ACES path."""
+    log = carmen.read_log(data / "aces-corrected.log.gz")
+    xy = np.array([pose[:2] for _, pose, _ in laser_stream(log) if pose is not None])
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    keep = travelled <= metres
+    xy, travelled = xy[keep], travelled[keep]
+    marks = np.searchsorted(travelled, np.arange(0.0, travelled[-1], spacing))
+    return [tuple(p) for p in xy[np.unique(np.append(marks, xy.shape[0] - 1))]]
+
+
+def run(rec, angles, particles: int, resolution: float, geometry: GridGeometry, scans: int | None = None,
+        **options):
+    """The filter over the first ``scans`` of the drive: its updates' metrics and the ATE of its best path."""
+    slam = RBPF(RBPFConfig(particles=particles, resolution=resolution, **options), max_range=LASER.max_range,
+                geometry=geometry)
+    slam.reset(rec.odometry_poses[0], np.random.default_rng(1))
+    rows, truth = [], []
+    for pose, true_pose, ranges in list(zip(rec.odometry_poses, rec.true_poses, rec.scans))[:scans]:
+        metrics = slam.process(pose, ranges, angles)
+        if metrics is not None:
+            rows.append(metrics)
+            truth.append(true_pose[:2])
+    error = slam.paths[slam.best, :, :2] - np.array(truth)
+    return rows, float(np.sqrt(np.mean(np.sum(error ** 2, axis=1))))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--particles", type=int, default=15)
+    parser.add_argument("--resolution", type=float, default=0.05)
+    parser.add_argument("--metres", type=float, default=323.0, help="how much of the ACES path to drive")
+    parser.add_argument("--data", type=Path,
+                        default=Path(__file__).resolve().parents[2] / "shared" / "datasets" / "carmen")
+    parser.add_argument("--out", type=Path, default=None, help="also write the drive as a CARMEN log")
+    args = parser.parse_args()
+    world = load_world("aces")
+    sim = Simulator(world, laser=LASER)
+    t0 = time.perf_counter()
+    rec = drive_route(sim, tour(args.data, args.metres), np.random.default_rng(0), max_steps=100000)
+    print(f"drove {np.hypot(*np.diff(rec.true_poses[:, :2], axis=0).T).sum():.0f} m of the ACES path in "
+          f"{rec.times[-1]:.0f} s simulated ({time.perf_counter() - t0:.0f} s wall, {len(rec.times)} scans, "
+          f"{'reached its end' if rec.reached else 'stopped before its end'})")
+    if args.out:
+        write_carmen(rec, sim, args.out)
+        print(f"wrote {args.out}")
+    xmin, ymin, xmax, ymax = world.bounds
+    cx, cy = (xmin + xmax) / 2, (ymin + ymax) / 2
+    geometry = GridGeometry.covering(cx - 30.0, cy - 30.0, cx + 30.0, cy + 30.0, args.resolution)
+    run(rec, LASER.angles, args.particles, args.resolution, geometry, scans=100, resample_threshold=1.0)  # load kernels
+    t0 = time.perf_counter()
+    rows, ate = run(rec, LASER.angles, args.particles, args.resolution, geometry)
+    wall = time.perf_counter() - t0
+    timed = rows[10:]
+    phases = {k: float(np.median([r.phase_ms[k] for r in timed])) for k in timed[0].phase_ms}
+    resamplings = [r.phase_ms["resampling"] for r in rows if r.resampled]
+    print(f"RBPF, {args.particles} particles, {LASER.n_beams} beams over 180 deg to {LASER.max_range:g} m, "
+          f"{args.resolution:g} m cells, 60 m x 60 m grid: {len(rows)} updates in {wall:.1f} s")
+    print(f"median update {np.median([r.update_ms for r in timed]):.2f} ms (max "
+          f"{max(r.update_ms for r in timed):.1f}), of which (medians) " +
+          ", ".join(f"{k} {v:.2f}" for k, v in phases.items()))
+    print(f"resamplings {len(resamplings)}, longest {max(resamplings, default=0.0):.2f} ms, median "
+          f"{np.median(resamplings) if resamplings else 0.0:.2f} ms; ATE of the best path {ate:.3f} m")
+
+
+if __name__ == "__main__":
+    main()
