@@ -12,7 +12,7 @@ from tqdm.auto import tqdm
 def one_kernel_thread() -> None:
     """Run the particle kernels on one thread in this process: where processes are the parallelism
     (worker pools, vectorised envs), threads in each would only compete for the cores."""
-    from .slam.threads import set_kernel_threads
+    from .threads import set_kernel_threads
 
     set_kernel_threads(1)
 

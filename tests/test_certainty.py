@@ -342,3 +342,28 @@ def test_observed_cells_decide_by_the_entropy_rule_of_eq_10():
         with np.errstate(invalid="ignore"):
             expected = cell_entropy(p) < max_entropy_bits(tol)
         assert np.array_equal(C.observed_cells(p, tol), expected)
+
+
+def test_emmi_of_parts_is_the_same_on_any_number_of_threads():
+    """The disputed cells are split among threads (here 90 000 of them, three chunks): the same EMMI,
+    bit for bit, as on one thread, and equal to EMMI over the whole grids."""
+    from emmi_gym.threads import kernel_threads, set_kernel_threads
+
+    rng = np.random.default_rng(7)
+    grids = rng.integers(-120, 120, (4, 300, 310)).astype(np.int8)
+    grids[:, :, :10] = 50  # agreed cells
+    lut = 1.0 / (1.0 + np.exp(-np.arange(-128, 128) / 20.0))
+    disputed = np.flatnonzero(~np.all(grids == grids[:1], axis=0))
+    agreed = np.bincount(grids[0].ravel()[np.all(grids == grids[:1], axis=0).ravel()].astype(np.int64) + 128,
+                         minlength=256)
+    w = np.array([0.1, 0.2, 0.3, 0.4])
+    threads = kernel_threads()
+    try:
+        set_kernel_threads(1)
+        one = C.emmi_of_parts(grids, disputed, w, agreed, lut=lut)
+        set_kernel_threads(3)
+        three = C.emmi_of_parts(grids, disputed, w, agreed, lut=lut)
+    finally:
+        set_kernel_threads(threads)
+    assert disputed.size > 60000 and one == three
+    assert one == pytest.approx(C.emmi(grids, w, lut=lut), rel=1e-12)

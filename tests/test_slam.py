@@ -94,7 +94,7 @@ def test_metrics_are_those_of_the_certainty_functions(loop_runs):
 
 
 def test_same_seed_same_filter_bit_for_bit_on_any_number_of_threads():
-    from emmi_gym.slam.threads import kernel_threads, set_kernel_threads
+    from emmi_gym.threads import kernel_threads, set_kernel_threads
 
     threads = kernel_threads()
     try:

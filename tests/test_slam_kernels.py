@@ -119,9 +119,14 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     block = 4
     coarse = np.array([occupied_per_block(c, block) for c in codes])
     touched = np.empty(h * w, dtype=np.int32)
-    serial, n_touched = K.insert_scans(got, hits, counts, coarse, block, poses, *rays, 17, -8, 100, 0.0, 0.0, RES,
-                                       stamp, 0, touched)
-    assert serial == 2 * m
+    split = m // 2  # two chunks, as on two threads (each its own stamp and list), then merged
+    serial, n_touched = K.insert_scans(0, split, got, hits, counts, coarse, block, poses, *rays, 17, -8, 100, 0.0,
+                                       0.0, RES, stamp, 0, touched)
+    other, other_stamp = np.empty(h * w, dtype=np.int32), np.zeros((h, w), dtype=np.int64)
+    other_serial, n_other = K.insert_scans(split, m, got, hits, counts, coarse, block, poses, *rays, 17, -8, 100,
+                                           0.0, 0.0, RES, other_stamp, 0, other)
+    assert serial == 2 * split and other_serial == 2 * (m - split)
+    n_touched = K.merge_touched(touched, n_touched, stamp, 0, other, n_other)
     changed = np.flatnonzero(np.any(got != codes, axis=0))
     assert len(set(touched[:n_touched])) == n_touched  # each cell once
     assert set(changed) <= set(touched[:n_touched])
@@ -151,7 +156,7 @@ def test_hit_means_follow_the_end_points():
         a = math.atan2(ey - 0.05, ex - 0.05)
         counts = np.zeros((1, 256), dtype=np.int64)
         counts[0, 128] = 100
-        serial, _ = K.insert_scans(codes, hits, counts, np.zeros((1, 10, 10), dtype=np.int32), 1,
+        serial, _ = K.insert_scans(0, 1, codes, hits, counts, np.zeros((1, 10, 10), dtype=np.int32), 1,
                                    np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
                                    np.array([K.RAY_HIT]), 17, -8, 100, 0.0, 0.0, RES, stamp, serial,
                                    np.empty(100, dtype=np.int32))

@@ -67,18 +67,30 @@ def expected_map_codes(grids, weights, lut, offset, out):
             out[j] += wi * lut[np.int64(row[j]) + offset]
 
 
-@nb.njit(cache=True)
-def expected_map_codes_at(grids, cells, weights, lut, offset, out):
-    """EM, eq. (6), of integer-coded grids (M, N) at the flat indices ``cells`` only:
-    out[k] = sum_i w_i lut[code_i,cells[k] + offset]. Cells in increasing order read
-    the M grids front to back."""
+@nb.njit(cache=True, nogil=True)
+def information_at(start, stop, grids, cells, weights, lut, offset, max_entropy_bits, unobserved_halfwidth,
+                   information, observed):
+    """Eq. (6), then eq. (9), at the flat indices ``cells[start:stop]`` of integer-coded grids (M, N).
+
+    Each cell's expected map is ``sum_i w_i lut[code_i + offset]``; ``observed[k]`` says
+    whether it counts as observed (entropy below ``max_entropy_bits``, decided without a
+    logarithm within ``unobserved_halfwidth`` of 0.5) and ``information[k]`` holds its
+    information ``1 - H2`` (0 if unobserved). Cells in increasing order read the M grids
+    front to back; chunks of cells may run on parallel threads (``emmi_gym.threads``).
+    """
     m = grids.shape[0]
-    for k in range(cells.size):
+    for k in range(start, stop):
         c = cells[k]
-        acc = 0.0
+        p = 0.0
         for i in range(m):
-            acc += weights[i] * lut[np.int64(grids[i, c]) + offset]
-        out[k] = acc
+            p += weights[i] * lut[np.int64(grids[i, c]) + offset]
+        information[k] = 0.0
+        observed[k] = False
+        if abs(p - 0.5) >= unobserved_halfwidth:
+            h = _entropy_bits(p)
+            if h < max_entropy_bits:
+                information[k] = 1.0 - h
+                observed[k] = True
 
 
 @nb.njit(cache=True)

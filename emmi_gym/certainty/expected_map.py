@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..threads import run_in_chunks
 from . import _kernels
 from .grids import ParticleGrids
-from .information import DEFAULT_OBSERVED_TOL, cell_information, information_and_observed, observed_cells
+from .information import (DEFAULT_OBSERVED_TOL, cell_information, information_and_observed, max_entropy_bits,
+                          observed_cells, unobserved_halfwidth)
 from .weights import normalize_weights
+
+#: Fewer disputed cells than this per thread are not worth a thread's start.
+_CELLS_PER_THREAD = 20000
 
 
 def expected_map(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False) -> np.ndarray:
@@ -44,12 +49,15 @@ def emmi_of_parts(grids, disputed, weights, agreed_counts, *, lut, log_weights: 
     probability whatever the weights, so those cells enter only through ``agreed_counts``
     (how many agreed cells hold each code, indexed like ``lut``), and only the disputed ones
     are averaged with the weights. Equal to :func:`emmi` of the whole grids, at the cost of
-    the disputed cells.
+    the disputed cells, split among the kernel threads (the same result on any number of them).
     """
     pg = ParticleGrids.from_arrays(grids, weights, lut=lut, log_weights=log_weights)
-    em = np.empty(len(disputed))
-    _kernels.expected_map_codes_at(pg.flat, np.asarray(disputed), pg.weights, pg.lut, pg.offset, em)
-    info, n_obs = information_and_observed(em, observed_tol)
+    cells = np.asarray(disputed)
+    information, observed = np.empty(cells.size), np.empty(cells.size, dtype=np.bool_)
+    max_bits = max_entropy_bits(observed_tol)
+    run_in_chunks(_kernels.information_at, cells.size, pg.flat, cells, pg.weights, pg.lut, pg.offset, max_bits,
+                  unobserved_halfwidth(max_bits), information, observed, min_chunk=_CELLS_PER_THREAD)
+    info, n_obs = float(information.sum()), int(np.count_nonzero(observed))
     counts, table = np.asarray(agreed_counts), pg.lut
     observed = (counts > 0) & observed_cells(table, observed_tol)
     info += float(counts[observed] @ cell_information(table[observed]))

@@ -107,10 +107,11 @@ def _accumulate_hit(cell, gx, gy, col, row):
     cell[2] = n
 
 
-@nb.njit(cache=True)
-def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_lengths, ray_kinds, inc_occupied,
-                 inc_free, clamp, origin_x, origin_y, resolution, stamp, serial, touched):
-    """Insert one scan, given as rays (see :func:`scan_rays`), into each particle's grid at its pose.
+@nb.njit(cache=True, nogil=True)
+def insert_scans(start, stop, codes, hits, counts, coarse, block, poses, ray_angles, ray_lengths, ray_kinds,
+                 inc_occupied, inc_free, clamp, origin_x, origin_y, resolution, stamp, serial, touched):
+    """Insert one scan, given as rays (see :func:`scan_rays`), into the grid of each particle in
+    [start, stop) at its pose.
 
     Eq. (4) in log-odds with the paper's peaked model (Fig. 2): per particle and scan a
     cell is updated at most once, ``inc_occupied`` if some hit ray ends in it, else
@@ -120,13 +121,15 @@ def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_leng
     and is returned with the number of cells the scan touched in any grid, whose flat
     indices go to ``touched`` (size H * W). Hit end points also update their cell's mean hit position, and
     ``counts`` (M, 256), how many cells of each grid hold each code (index code + 128),
-    and ``coarse``, the occupied cells per block, follow every change.
+    and ``coarse``, the occupied cells per block, follow every change. Chunks of particles
+    may run on parallel threads, each with its own ``stamp`` and ``touched`` (see
+    :func:`merge_touched`).
     """
-    m, h, w = codes.shape
+    h, w = codes.shape[1], codes.shape[2]
     n_rays = ray_angles.size
     first = serial  # stamps at or below this were left by earlier scans
     n_touched = 0
-    for i in range(m):
+    for i in range(start, stop):
         grid = codes[i]
         hit_id = serial + 1
         free_id = serial + 2
@@ -185,6 +188,24 @@ def insert_scans(codes, hits, counts, coarse, block, poses, ray_angles, ray_leng
                     cy += step_y
                     t_y += t_dy
     return serial, n_touched
+
+
+@nb.njit(cache=True)
+def merge_touched(touched, n_touched, stamp, first, other, n_other):
+    """Append to ``touched[:n_touched]`` the cells of ``other[:n_other]`` it lacks; a cell is listed
+    there if ``stamp`` (of the chunk that filled ``touched``) is above ``first``, and is
+    stamped so when appended. Returns the new length."""
+    w = stamp.shape[1]
+    mark = first + 1
+    for k in range(n_other):
+        cell = other[k]
+        row = cell // w
+        col = cell - row * w
+        if stamp[row, col] <= first:
+            stamp[row, col] = mark
+            touched[n_touched] = cell
+            n_touched += 1
+    return n_touched
 
 
 #: ``status`` of a cell on which the particles' grids differ (agreeing cells hold their common code).
@@ -246,18 +267,19 @@ def refresh_agreement(codes, hits, particles, cells, status, agreed_counts, disp
     return n_disputed
 
 
-@nb.njit(cache=True)
-def resample_cells(codes, hits, coarse, block, cells, parents):
-    """Particle i takes particle ``parents[i]``'s code and mean hit point at each of ``cells`` (flat
-    indices, increasing), keeping the occupied-cell counts per block ``coarse`` current.
+@nb.njit(cache=True, nogil=True)
+def resample_cells(start, stop, codes, hits, coarse, block, cells, parents):
+    """Particle i in [start, stop) takes particle ``parents[i]``'s code and mean hit point at each of
+    ``cells`` (flat indices, increasing), keeping the occupied-cell counts per block ``coarse``
+    current.
 
     ``parents`` keeps survivors in place (``parents[parents[i]] == parents[i]``), so a source
     is never overwritten: each dead particle's grid is filled from its parent's, grid by grid
-    in memory order. Elsewhere every grid already holds the same values, so nothing else
-    needs copying.
+    in memory order, and chunks of particles may run on parallel threads. Elsewhere every
+    grid already holds the same values, so nothing else needs copying.
     """
-    m, _, w = codes.shape
-    for i in range(m):
+    w = codes.shape[2]
+    for i in range(start, stop):
         p = parents[i]
         if p == i:
             continue

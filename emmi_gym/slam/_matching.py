@@ -330,7 +330,7 @@ def improved_proposal(start, stop, codes, hits, coarse, motion_samples, motion_m
     estimated by the one sample drawn from the motion model.
 
     Proposes particles ``start`` to ``stop`` - 1: the particles are independent, so chunks of
-    them run at once on threads (:mod:`emmi_gym.slam.threads`; the GIL is released), with the
+    them run at once on threads (:mod:`emmi_gym.threads`; the GIL is released), with the
     same result whatever the number of threads.
     """
     lstep, astep = s.linear_step, s.angular_step

@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import certainty
 from ..grid import GridGeometry
+from ..threads import chunk_bounds, run_calls, run_in_chunks
 from . import _kernels
 from .sensor_model import CellCodes
 
@@ -60,14 +61,17 @@ class ParticleMaps:
     """
 
     #: Bytes a cell takes: per particle its code, mean hit and share of a coarse count; shared, its
-    #: agreement status, list positions and stamp.
+    #: agreement status and list positions; per insertion thread, its stamp and touched list.
     BYTES_PER_CELL_PARTICLE = 5
-    BYTES_PER_CELL = 22
+    BYTES_PER_CELL = 10
+    BYTES_PER_CELL_THREAD = 12
 
     @classmethod
     def check_memory(cls, rows: int, cols: int, n_particles: int, resolution: float) -> None:
         """Raise :class:`MapTooLarge` if maps of this shape would take more than :data:`MAX_MAP_BYTES`."""
-        needed = rows * cols * (cls.BYTES_PER_CELL_PARTICLE * n_particles + cls.BYTES_PER_CELL)
+        threads = len(chunk_bounds(n_particles))
+        needed = rows * cols * (cls.BYTES_PER_CELL_PARTICLE * n_particles + cls.BYTES_PER_CELL +
+                                cls.BYTES_PER_CELL_THREAD * threads)
         if needed > MAX_MAP_BYTES:
             raise MapTooLarge(f"maps of {rows} x {cols} cells of {resolution:g} m ({cols * resolution:.0f} x "
                               f"{rows * resolution:.0f} m) for {n_particles} particles would take {needed / 2**30:.1f} "
@@ -90,9 +94,7 @@ class ParticleMaps:
         self._position = np.full(geometry.shape, -1, dtype=np.int32)
         self._disputed = np.empty(geometry.rows * geometry.cols, dtype=np.int32)
         self._n_disputed = 0
-        self._touched = np.empty(geometry.rows * geometry.cols, dtype=np.int32)
-        self._stamp = np.zeros(geometry.shape, dtype=np.int64)
-        self._serial = 0
+        self._scratch: list[_InsertionScratch] = []
 
     @property
     def n_particles(self) -> int:
@@ -121,10 +123,22 @@ class ParticleMaps:
         free_lengths = np.where(ranges >= max_range, min(free_range, hit_range), hit_range)
         rays = _kernels.scan_rays(ranges, angles, beam_gaps(angles), hit_range, free_lengths, g.resolution,
                                   depth_jump)
-        self._serial, n_touched = _kernels.insert_scans(
-            self.codes, self.hits, self.counts, self.coarse, self.block, poses, *rays, c.occupied, c.free, c.clamp,
-            g.origin_x, g.origin_y, g.resolution, self._stamp, self._serial, self._touched)
-        self._refresh(self._touched[:n_touched], np.arange(self.n_particles))
+        chunks = chunk_bounds(self.n_particles)
+        while len(self._scratch) < len(chunks):
+            self._scratch.append(_InsertionScratch(g.shape))
+        scratch = self._scratch[:len(chunks)]
+        first = scratch[0].serial
+        results = run_calls([(_kernels.insert_scans, start, stop, self.codes, self.hits, self.counts, self.coarse,
+                              self.block, poses, *rays, c.occupied, c.free, c.clamp, g.origin_x, g.origin_y,
+                              g.resolution, part.stamp, part.serial, part.touched)
+                             for (start, stop), part in zip(chunks, scratch)])
+        for part, (serial, n_touched) in zip(scratch, results):
+            part.serial, part.n_touched = serial, n_touched
+        touched = scratch[0].touched
+        for part in scratch[1:]:  # the cells other chunks touched that the first did not
+            scratch[0].n_touched = _kernels.merge_touched(touched, scratch[0].n_touched, scratch[0].stamp, first,
+                                                          part.touched, part.n_touched)
+        self._refresh(touched[:scratch[0].n_touched], np.arange(self.n_particles))
 
     def _refresh(self, cells: np.ndarray, particles: np.ndarray) -> None:
         """Re-derive the agreement of ``cells`` among the grids of ``particles``, then keep the disputed
@@ -149,7 +163,8 @@ class ParticleMaps:
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
         cells = self.disputed_cells.copy()
-        _kernels.resample_cells(self.codes, self.hits, self.coarse, self.block, cells, parents)
+        run_in_chunks(_kernels.resample_cells, self.n_particles, self.codes, self.hits, self.coarse, self.block, cells,
+                      parents)
         self.counts = self.counts[parents]
         self._refresh(cells, np.unique(parents))
 
@@ -192,12 +207,27 @@ class ParticleMaps:
         rows, cols = np.divmod(self.disputed_cells.astype(np.int64), g.cols)
         self.status = np.pad(self.status, pad[1:])
         self._position = np.pad(self._position, pad[1:], constant_values=-1)
-        self._stamp = np.pad(self._stamp, pad[1:])
+        for part in self._scratch:
+            part.grow(pad[1:])
         self.geometry = GridGeometry(g.resolution, g.origin_x - left * cells * g.resolution,
                                      g.origin_y - down * cells * g.resolution, self.codes.shape[1],
                                      self.codes.shape[2])
         n = self._n_disputed
         self._disputed = np.empty(self.geometry.rows * self.geometry.cols, dtype=np.int32)
         self._disputed[:n] = (rows + down * cells) * self.geometry.cols + cols + left * cells
-        self._touched = np.empty_like(self._disputed)
         return True
+
+
+class _InsertionScratch:
+    """One insertion thread's working memory: which cells its particles' rays updated in this scan
+    (``stamp``, see ``_kernels.insert_scans``), the flat indices of those cells and its serial."""
+
+    def __init__(self, shape: tuple[int, int]):
+        self.stamp = np.zeros(shape, dtype=np.int64)
+        self.touched = np.empty(shape[0] * shape[1], dtype=np.int32)
+        self.serial = 0
+        self.n_touched = 0
+
+    def grow(self, pad) -> None:
+        self.stamp = np.pad(self.stamp, pad)
+        self.touched = np.empty(self.stamp.size, dtype=np.int32)

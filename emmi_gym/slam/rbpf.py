@@ -36,7 +36,7 @@ from .config import RBPFConfig
 from .occupancy import ParticleMaps
 from .resampling import survivors_in_place, systematic_resample
 from .sensor_model import CellCodes
-from .threads import run_in_chunks
+from ..threads import run_in_chunks
 
 #: Floors on the motion model's pose deviations (m, m, rad), so that a standing update stays proper.
 _MOTION_FLOOR = np.array([0.01, 0.01, 0.005])

@@ -1,0 +1,61 @@
+"""Threads for the numba kernels whose work splits into independent items: the particles' scan
+matching and map copies, the expected map's disputed cells.
+
+The items are split into chunks that run at once on a thread pool, each chunk one call of a
+numba kernel compiled with ``nogil=True`` that writes only its own items' results: the result
+is the same whatever the number of threads. Python threads rather than numba's ``parallel=True``:
+numba's OpenMP layer aborts a process that forks after using it (gymnasium's
+``AsyncVectorEnv`` and ``ProcessPoolExecutor`` fork on Linux), its work-queue layer gained little
+here, and the TBB layer is a separate install. The pool is made per process, on first use.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+_threads = max(1, os.cpu_count() or 1)
+_pool: ThreadPoolExecutor | None = None
+_pool_pid: int | None = None
+
+
+def kernel_threads() -> int:
+    """How many threads the particle kernels use in this process (default: one per core)."""
+    return _threads
+
+
+def set_kernel_threads(threads: int) -> None:
+    """Use ``threads`` threads for the particle kernels in this process (1: no pool at all)."""
+    global _threads, _pool
+    if not (isinstance(threads, int) and threads >= 1):
+        raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
+    _threads = threads
+    if _pool is not None:
+        _pool.shutdown(wait=False)
+        _pool = None
+
+
+def chunk_bounds(n: int, min_chunk: int = 1) -> list[tuple[int, int]]:
+    """``range(n)`` split into one (start, stop) chunk per thread, each of at least ``min_chunk`` items
+    (one chunk if ``n`` is smaller)."""
+    chunks = max(1, min(_threads, n // max(1, min_chunk)))
+    bounds = [n * k // chunks for k in range(chunks + 1)]
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
+def run_calls(calls: list[tuple]) -> list:
+    """Run each call ``(function, *args)`` at once on the pool (this thread takes the first); their
+    results, in order."""
+    global _pool, _pool_pid
+    if len(calls) == 1:
+        return [calls[0][0](*calls[0][1:])]
+    if _pool is None or _pool_pid != os.getpid():  # none yet, or a fork's copy of the parent's
+        _pool, _pool_pid = ThreadPoolExecutor(_threads - 1, thread_name_prefix="emmi-kernel"), os.getpid()
+    futures = [_pool.submit(*call) for call in calls[1:]]
+    first = calls[0][0](*calls[0][1:])
+    return [first] + [future.result() for future in futures]
+
+
+def run_in_chunks(kernel, n: int, *args, min_chunk: int = 1) -> None:
+    """``kernel(start, stop, *args)`` over ``range(n)`` split by :func:`chunk_bounds`, all at once."""
+    run_calls([(kernel, start, stop, *args) for start, stop in chunk_bounds(n, min_chunk)])
