@@ -94,6 +94,7 @@ def main() -> None:
     print(f"median update {np.median([r.update_ms for r in timed]):.2f} ms (max "
           f"{max(r.update_ms for r in timed):.1f}), of which (medians) " +
           ", ".join(f"{k} {v:.2f}" for k, v in phases.items()))
+    print(f"CPU time per update (all threads) median {np.median([r.cpu_ms for r in timed]):.2f} ms")
     print(f"resamplings {len(resamplings)}, longest {max(resamplings, default=0.0):.2f} ms, median "
           f"{np.median(resamplings) if resamplings else 0.0:.2f} ms; ATE of the best path {ate:.3f} m")
 
