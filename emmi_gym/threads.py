@@ -7,16 +7,53 @@ is the same whatever the number of threads. Python threads rather than numba's `
 numba's OpenMP layer aborts a process that forks after using it (gymnasium's
 ``AsyncVectorEnv`` and ``ProcessPoolExecutor`` fork on Linux), its work-queue layer gained little
 here, and the TBB layer is a separate install. The pool is made per process, on first use.
+
+Its threads are daemons. ``concurrent.futures.ThreadPoolExecutor``'s are not: the interpreter
+joins them at exit after telling each registered one to stop, and a thread whose start is cut
+short by a Ctrl-C (``Thread.start`` waits for the new thread to run) is never registered, so
+the process hung at exit for ever (seen as a rare hang of ``emmi-gym train`` after SIGINT).
 """
 
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+import queue
+import threading
+from concurrent.futures import Future
 
 _threads = max(1, os.cpu_count() or 1)
-_pool: ThreadPoolExecutor | None = None
-_pool_pid: int | None = None
+
+
+class _DaemonPool:
+    """Worker threads that take calls from one queue and never keep the process alive."""
+
+    def __init__(self, workers: int):
+        self._calls: queue.SimpleQueue = queue.SimpleQueue()
+        self.pid = os.getpid()
+        for k in range(workers):
+            threading.Thread(target=self._work, name=f"emmi-kernel-{k}", daemon=True).start()
+        self.workers = workers
+
+    def submit(self, fn, *args) -> Future:
+        future: Future = Future()
+        self._calls.put((future, fn, args))
+        return future
+
+    def shutdown(self) -> None:
+        for _ in range(self.workers):
+            self._calls.put(None)
+
+    def _work(self) -> None:
+        while (call := self._calls.get()) is not None:
+            future, fn, args = call
+            if future.set_running_or_notify_cancel():
+                try:
+                    future.set_result(fn(*args))
+                except BaseException as error:  # handed to the caller, which raises it
+                    future.set_exception(error)
+
+
+_pool: _DaemonPool | None = None
 
 
 def kernel_threads() -> int:
@@ -31,7 +68,7 @@ def set_kernel_threads(threads: int) -> None:
         raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
     _threads = threads
     if _pool is not None:
-        _pool.shutdown(wait=False)
+        _pool.shutdown()
         _pool = None
 
 
@@ -46,11 +83,11 @@ def chunk_bounds(n: int, min_chunk: int = 1) -> list[tuple[int, int]]:
 def run_calls(calls: list[tuple]) -> list:
     """Run each call ``(function, *args)`` at once on the pool (this thread takes the first); their
     results, in order."""
-    global _pool, _pool_pid
+    global _pool
     if len(calls) == 1:
         return [calls[0][0](*calls[0][1:])]
-    if _pool is None or _pool_pid != os.getpid():  # none yet, or a fork's copy of the parent's
-        _pool, _pool_pid = ThreadPoolExecutor(_threads - 1, thread_name_prefix="emmi-kernel"), os.getpid()
+    if _pool is None or _pool.pid != os.getpid():  # none yet, or a fork's copy of the parent's
+        _pool = _DaemonPool(_threads - 1)
     futures = [_pool.submit(*call) for call in calls[1:]]
     first = calls[0][0](*calls[0][1:])
     return [first] + [future.result() for future in futures]

@@ -2,7 +2,6 @@
 configurations are clear errors; the benchmark runs locally and on a local Ray instance."""
 
 import csv
-import os
 
 import numpy as np
 import pytest
@@ -92,9 +91,6 @@ def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     assert finished.timesteps >= 96 and (tmp_path / "model.zip").exists()
 
 
-@pytest.mark.skipif(not os.environ.get("EMMI_GYM_SIGNAL_TESTS"), reason="hangs now and then after SIGINT when run "
-                    "late in the full suite (never alone): under investigation; run with EMMI_GYM_SIGNAL_TESTS=1, "
-                    "or scripts/hardening_audit.py --train")
 @pytest.mark.parametrize("whole_group", [False, True], ids=["kill -INT main process", "Ctrl-C (process group)"])
 def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, tmp_path):
     import os
@@ -129,7 +125,9 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
             out, err = process.communicate(timeout=120)
         except subprocess.TimeoutExpired:  # a deadlock: every process of the run dumps its threads' stacks
             os.killpg(process.pid, signal.SIGABRT)
-            pytest.fail(f"no exit 120 s after SIGINT; stacks:\n{process.communicate(timeout=30)[1][-6000:]}")
+            stacks = [line for line in process.communicate(timeout=30)[1].splitlines()
+                      if line.startswith(("Fatal Python error", "Thread ", "Current thread ", "  File "))]
+            pytest.fail("no exit 120 s after SIGINT; stacks:\n" + "\n".join(stacks)[-8000:])
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
@@ -138,6 +136,56 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
     newest = latest_checkpoint(run)
     with zipfile.ZipFile(newest) as archive:
         assert archive.testzip() is None
+
+
+def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monkeypatch):
+    """A Ctrl-C that arrives while numba loads a kernel raises KeyboardInterrupt inside llvmlite's ctypes
+    callback, which prints and drops it: training went on (the other rare failure of the SIGINT test).
+    Here the exception is dropped the same way; the interrupt must still stop training at the next step."""
+    import signal
+
+    from emmi_gym.training.train import AtomicCheckpointCallback
+
+    original = AtomicCheckpointCallback._on_step
+
+    def ctrl_c_dropped(self):
+        if self.num_timesteps == 40:
+            try:
+                signal.raise_signal(signal.SIGINT)
+            except KeyboardInterrupt:
+                pass  # as ctypes does with what a callback raises
+        return original(self)
+
+    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", ctrl_c_dropped)
+    config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
+    stopped = train(config, tmp_path, progress=False)
+    assert stopped.interrupted and stopped.timesteps == 41 and stopped.model_path == latest_checkpoint(tmp_path)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_a_ctrl_c_while_the_kernel_threads_start_does_not_hang_the_exit():
+    """What made ``emmi-gym train`` hang now and then after SIGINT: a Ctrl-C that arrived while a kernel
+    thread was starting (``Thread.start`` waits for it) left a worker that the interpreter waited for
+    at exit, for ever (ThreadPoolExecutor's workers are joined at exit)."""
+    import subprocess
+    import sys
+
+    script = "\n".join([
+        "import threading",
+        "from emmi_gym import threads",
+        "threads.set_kernel_threads(2)",
+        "start = threading.Thread.start",
+        "def start_then_interrupt(thread):",
+        "    start(thread)",
+        "    raise KeyboardInterrupt",
+        "threading.Thread.start = start_then_interrupt",
+        "try:",
+        "    threads.run_calls([(sum, [1]), (sum, [2])])",
+        "except KeyboardInterrupt:",
+        "    print('interrupted')",
+    ])
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.strip() == "interrupted", done.stderr[-2000:]
 
 
 def test_resume_skips_a_checkpoint_cut_short_by_a_kill(tmp_path):

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import yaml
-from stable_baselines3.common.callbacks import CheckpointCallback
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from ..parallel import one_kernel_thread
@@ -101,6 +101,46 @@ def interrupts_deferred():
         signal.signal(signal.SIGINT, previous)
     if received:
         raise KeyboardInterrupt
+
+
+@contextmanager
+def interrupts_remembered():
+    """Within the block a Ctrl-C (SIGINT) raises KeyboardInterrupt as usual and is also remembered:
+    yields a list that holds True once one arrived.
+
+    Python code called back from C can drop the exception: numba loads and compiles its
+    kernels through llvmlite, whose ctypes callbacks print and discard what they raise, so a
+    Ctrl-C that arrived there was lost and training went on. :class:`StopOnInterrupt`
+    raises it again at the next step.
+    """
+    received: list[bool] = []
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        yield received  # signals are the main thread's; an ignored Ctrl-C (a background job) stays ignored
+        return
+
+    def remember(signum, frame):
+        received.append(True)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, remember)
+    try:
+        yield received
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+class StopOnInterrupt(BaseCallback):
+    """Raise KeyboardInterrupt at the first step after a Ctrl-C that :func:`interrupts_remembered` saw,
+    in case its own exception was dropped where it arrived."""
+
+    def __init__(self, received: list):
+        super().__init__()
+        self.received = received
+
+    def _on_step(self) -> bool:
+        if self.received:
+            raise KeyboardInterrupt
+        return True
 
 
 def save_atomically(save, path: Path) -> Path:
@@ -225,12 +265,12 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     started = time.perf_counter()
     interrupted = False
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), interrupts_remembered() as interrupts:
             # the held-out evaluation runs in this process (a DummyVecEnv) while training may use
             # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
             warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
-            model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
-                        reset_num_timesteps=start is None, tb_log_name="run")
+            model.learn(remaining, callback=CallbackList([StopOnInterrupt(interrupts), *callbacks]),
+                        progress_bar=progress, reset_num_timesteps=start is None, tb_log_name="run")
         with interrupts_deferred():
             model_path = save_atomically(model.save, run_dir / "model.zip")
     except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
