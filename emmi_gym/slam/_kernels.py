@@ -118,7 +118,7 @@ def insert_scans(start, stop, codes, hits, counts, coarse, block, poses, ray_ang
     ``inc_free`` if some ray crosses it before its end (exact cell traversal, Amanatides
     & Woo; a RAY_FREE ray frees its end cell too). ``stamp`` (H, W) int64
     remembers which cells this scan already touched; ``serial`` grows by 2 per particle
-    and is returned with the number of cells the scan touched in any grid, whose flat
+    and is returned with the number of cells the scan touched in these grids, whose flat
     indices go to ``touched`` (size H * W). Hit end points also update their cell's mean hit position, and
     ``counts`` (M, 256), how many cells of each grid hold each code (index code + 128),
     and ``coarse``, the occupied cells per block, follow every change. Chunks of particles

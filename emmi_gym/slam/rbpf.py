@@ -30,13 +30,13 @@ import numpy as np
 from .. import certainty
 from ..grid import GridGeometry
 from ..motion import compose_local, local_delta, local_motion_std
+from ..threads import run_in_chunks
 from ..validation import MAX_LASER_RANGE, Real, check_value
 from . import _matching
 from .config import RBPFConfig
 from .occupancy import ParticleMaps
 from .resampling import survivors_in_place, systematic_resample
 from .sensor_model import CellCodes
-from ..threads import run_in_chunks
 
 #: Floors on the motion model's pose deviations (m, m, rad), so that a standing update stays proper.
 _MOTION_FLOOR = np.array([0.01, 0.01, 0.005])

@@ -14,6 +14,7 @@ import copy
 import os
 import re
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -86,12 +87,19 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str):
                             n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if subprocesses else DummyVecEnv)
 
 
+def _handles_ctrl_c() -> bool:
+    """Whether this code may set a SIGINT handler: signals are the main thread's, and an ignored
+    Ctrl-C (a background job) stays ignored."""
+    return threading.current_thread() is threading.main_thread() and \
+        signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
+
+
 @contextmanager
 def interrupts_deferred():
     """Hold a Ctrl-C (SIGINT) that arrives inside the block until it ends, then raise it: an
     interrupted ``torch.save`` leaves a broken archive and raises its own error instead."""
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        yield  # signals are the main thread's; an ignored Ctrl-C (a background job) stays ignored
+    if not _handles_ctrl_c():
+        yield
         return
     received = []
     previous = signal.signal(signal.SIGINT, lambda *_: received.append(True))
@@ -109,24 +117,31 @@ def interrupts_remembered():
     yields a list that holds True once one arrived.
 
     Python code called back from C can drop the exception: numba loads and compiles its
-    kernels through llvmlite, whose ctypes callbacks print and discard what they raise, so a
-    Ctrl-C that arrived there was lost and training went on. :class:`StopOnInterrupt`
-    raises it again at the next step.
+    kernels through llvmlite, whose ctypes callbacks discard what they raise (and print it
+    as an "Exception ignored" traceback), so a Ctrl-C that arrived there was lost and
+    training went on. :class:`StopOnInterrupt` raises it again at the next step, and a
+    KeyboardInterrupt discarded so is not printed (``sys.unraisablehook``).
     """
     received: list[bool] = []
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        yield received  # signals are the main thread's; an ignored Ctrl-C (a background job) stays ignored
+    if not _handles_ctrl_c():
+        yield received
         return
 
     def remember(signum, frame):
         received.append(True)
         raise KeyboardInterrupt
 
-    previous = signal.signal(signal.SIGINT, remember)
+    def quiet_when_remembered(unraisable):
+        if not (received and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+            previous_hook(unraisable)
+
+    previous, previous_hook = signal.signal(signal.SIGINT, remember), sys.unraisablehook
+    sys.unraisablehook = quiet_when_remembered
     try:
         yield received
     finally:
         signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = previous_hook
 
 
 class StopOnInterrupt(BaseCallback):
