@@ -412,6 +412,26 @@ def test_a_loop_through_unseen_space_is_offered_by_the_length_of_its_route():
     assert start and 1.0 - 1.0 / start[0].gain >= 1.0 - 1.0 / LOOP_RATIO
 
 
+def test_a_wall_seen_at_glancing_angles_hides_no_frontier_behind_it():
+    """A corridor whose side walls the laser only grazed: a broken line of cells just above 0.5 among
+    cells just below it (values as on the real buildings' expected maps), unknown space behind. The
+    only frontier is the corridor's open end; the wall lines used to give a row of frontier targets
+    that vanished as the robot drove near."""
+    from emmi_gym.grid import GridGeometry
+    from emmi_gym.navigation.candidates import frontier_targets
+    from emmi_gym.navigation.planner import travel_costs
+
+    geometry = GridGeometry(0.1, 0.0, 0.0, 60, 100)      # 10 m x 6 m, unknown
+    em = np.full(geometry.shape, 0.5)
+    em[20:41, 0:80] = 0.1                                # the corridor y = 2..4 m, known free up to x = 8 m
+    grazed = np.resize([0.53, 0.46, 0.45, 0.46, 0.44, 0.46], 80)
+    em[19, 0:80] = em[41, 0:80] = grazed                 # its walls, barely seen
+    costs = travel_costs(em, geometry, (1.0, 3.0), 0.2)
+    targets = frontier_targets(em, costs)
+    assert len(targets) == 1
+    assert targets[0].x == pytest.approx(7.95, abs=0.11) and 2.2 < targets[0].y < 3.8
+
+
 def test_loop_closing_target_is_reached_without_pushing_into_walls():
     """From the decision point the start lies behind a corner the map has barely seen: the first plan
     cuts through unknown space, and only replanning on the way keeps the robot off the walls."""

@@ -92,9 +92,6 @@ def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     assert finished.timesteps >= 96 and (tmp_path / "model.zip").exists()
 
 
-@pytest.mark.skipif(not os.environ.get("EMMI_GYM_SIGNAL_TESTS"), reason="opt-in (EMMI_GYM_SIGNAL_TESTS=1): under CPU "
-                    "load about 1 run in 14 ends killed by the SIGINT itself (exit -2, nothing on stderr), cause not "
-                    "found; its two other rare failures are fixed and tested below")
 @pytest.mark.parametrize("whole_group", [False, True], ids=["kill -INT main process", "Ctrl-C (process group)"])
 def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, tmp_path):
     import signal

@@ -44,7 +44,9 @@ def safe_command(v: float, omega: float, points: np.ndarray, radius: float, max_
 
     Nearest by DWA-style cost: the change of turn rate (as a fraction of the limit) plus
     the fraction of speed given up. Turning on the spot is always safe for the round
-    robot; when it already touches something it backs away instead, if that opens a gap.
+    robot; when it already touches something it backs away instead, if that opens a gap. When
+    the robot should drive on but no arc forward is clear, it turns away from the nearest point
+    (:func:`_turn_away`).
     """
     clearance = radius + MARGIN
     if points.size == 0:
@@ -60,11 +62,26 @@ def safe_command(v: float, omega: float, points: np.ndarray, radius: float, max_
     if ok.any():
         cost = np.abs(turns - omega) / max_turn_rate + (1.0 - scales)
         k = int(np.argmin(np.where(ok, cost, np.inf)))
-        return float(speeds[k]), float(turns[k])
-    back = BACK_UP * max_speed
-    if _closest_approach(np.array([back]), np.array([omega]), points)[0] > now:
-        return back, omega
-    return 0.0, omega
+        if speeds[k] != 0.0 or v <= 0.0:
+            return float(speeds[k]), float(turns[k])
+    else:
+        back = BACK_UP * max_speed
+        if _closest_approach(np.array([back]), np.array([omega]), points)[0] > now:
+            return back, omega
+    return 0.0, _turn_away(points, max_turn_rate)
+
+
+def _turn_away(points: np.ndarray, max_turn_rate: float) -> float:
+    """The turn rate that rotates the robot in place away from the nearest point (safe for a round robot).
+
+    When no arc forward is clear, standing still with the desired turn rate (the cheapest
+    command by the cost above) is a deadlock: the path follower asks for the same command
+    at every step, as by a door jamb just inside the margin at the robot's front corner.
+    Turning away brings a clear arc into reach, and the robot slides past the obstacle
+    (the escape rotation of a navigation stack's local planner).
+    """
+    nearest = points[np.argmin(np.hypot(points[:, 0], points[:, 1]))]
+    return -max_turn_rate if nearest[1] > 0.0 else max_turn_rate
 
 
 def _closest_approach(speeds: np.ndarray, turns: np.ndarray, points: np.ndarray) -> np.ndarray:
