@@ -37,7 +37,6 @@ def test_touching_a_wall_the_robot_backs_away():
     assert v < 0
 
 
-
 #: A scan (range m, bearing degrees; every fourth beam within 1.2 m) where a building episode stood still
 #: for its last 80 decisions: a door jamb at the left front just inside the margin, a wall on the right.
 JAMB_SCAN = [(0.61, -90), (0.613, -86), (0.582, -82), (0.544, -78), (0.521, -74), (0.466, -70), (0.443, -66),

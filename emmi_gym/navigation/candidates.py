@@ -46,7 +46,7 @@ def frontier_targets(expected_map: np.ndarray, costs: CostMap, observed_tol: flo
     unexplored space. Leaning, not surely occupied: a wall seen only at glancing angles
     is a broken line of cells just above 0.5, mixed with free ones where beams passed in
     front of it, and the unknown behind it gave rows of frontiers that vanished as the
-    robot drove near (on the real buildings, most of the macro-actions that ended blocked).
+    robot drove near (seen on the real buildings, where they ended many macro-actions blocked).
     """
     geometry = costs.geometry
     free = expected_map < FREE_P
