@@ -37,6 +37,14 @@ def test_touching_a_wall_the_robot_backs_away():
     assert v < 0
 
 
+def test_touching_a_wall_a_turn_in_place_is_left_as_asked():
+    """The escape rotation is for a robot that should drive on: one that only turns (the follower
+    faces it to its path first) keeps its own turn rate, whichever side the wall is on."""
+    x = np.linspace(0.0, 1.5, 80)
+    wall_on_the_left = np.column_stack([x, np.full_like(x, 0.22)])
+    assert safe_command(0.0, -1.0, wall_on_the_left, RADIUS, VMAX, WMAX) == (0.0, -1.0)
+
+
 #: A scan (range m, bearing degrees; every fourth beam within 1.2 m) where a building episode stood still
 #: for its last 80 decisions: a door jamb at the left front just inside the margin, a wall on the right.
 JAMB_SCAN = [(0.61, -90), (0.613, -86), (0.582, -82), (0.544, -78), (0.521, -74), (0.466, -70), (0.443, -66),

@@ -64,11 +64,9 @@ def safe_command(v: float, omega: float, points: np.ndarray, radius: float, max_
         k = int(np.argmin(np.where(ok, cost, np.inf)))
         if speeds[k] != 0.0 or v <= 0.0:
             return float(speeds[k]), float(turns[k])
-    else:
-        back = BACK_UP * max_speed
-        if _closest_approach(np.array([back]), np.array([omega]), points)[0] > now:
-            return back, omega
-    return 0.0, _turn_away(points, max_turn_rate)
+    elif _closest_approach(np.array([BACK_UP * max_speed]), np.array([omega]), points)[0] > now:
+        return BACK_UP * max_speed, omega
+    return 0.0, _turn_away(points, max_turn_rate) if v > 0.0 else omega
 
 
 def _turn_away(points: np.ndarray, max_turn_rate: float) -> float:
