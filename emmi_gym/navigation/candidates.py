@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from ..certainty import DEFAULT_OBSERVED_TOL, observed_cells
 from .planner import FREE_P, CostMap
 
 MIN_FRONTIER_CELLS = 4        # frontiers shorter than this (cells) are noise
@@ -38,11 +39,13 @@ class Target:
         return (self.x, self.y)
 
 
-def frontier_targets(expected_map: np.ndarray, costs: CostMap, observed_tol: float = 0.0224) -> list[Target]:
+def frontier_targets(expected_map: np.ndarray, costs: CostMap,
+                     observed_tol: float = DEFAULT_OBSERVED_TOL) -> list[Target]:
     """Clusters of known-free cells next to open unknown space, each represented by its cell nearest its centroid.
 
-    Unknown cells within two cells of an observed cell that leans occupied (p > 0.5 +
-    ``observed_tol``) do not count: they are the never-seen inside of a wall, not
+    Unknown means not observed in the sense of eq. (10) (:func:`~emmi_gym.certainty.observed_cells`,
+    ``observed_tol`` in nats). Unknown cells within two cells of an observed cell that leans
+    occupied (p > 0.5) do not count: they are the never-seen inside of a wall, not
     unexplored space. Leaning, not surely occupied: a wall seen only at glancing angles
     is a broken line of cells just above 0.5, mixed with free ones where beams passed in
     front of it, and the unknown behind it gave rows of frontiers that vanished as the
@@ -50,8 +53,9 @@ def frontier_targets(expected_map: np.ndarray, costs: CostMap, observed_tol: flo
     """
     geometry = costs.geometry
     free = expected_map < FREE_P
-    near_obstacle = ndimage.binary_dilation(expected_map > 0.5 + observed_tol, iterations=2)
-    unknown = (np.abs(expected_map - 0.5) < observed_tol) & ~near_obstacle
+    observed = observed_cells(expected_map, observed_tol)
+    near_obstacle = ndimage.binary_dilation(observed & (expected_map > 0.5), iterations=2)
+    unknown = ~observed & ~near_obstacle
     frontier = free & ndimage.binary_dilation(unknown, structure=ndimage.generate_binary_structure(2, 1))
     labels, n = ndimage.label(frontier, structure=np.ones((3, 3)))
     targets = []
