@@ -60,14 +60,15 @@ def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
     data = config_dict("MaskablePPO", {"max_decisions": 3}, {"n_steps": 8, "batch_size": 8, "n_epochs": 1},
                        timesteps=8, env_id="emmi_gym/LoopCorridor-v0")
     data["env"]["kwargs"] = {"particles": 3, "max_decisions": 3}
-    data["eval"] = {"freq": 4, "episodes": 1, "seed": 500}
+    data["eval"] = {"freq": 4, "episodes": 1, "seed": 500, "env_kwargs": {"max_decisions": 1}}
     result = train(parse_agent_config(data), tmp_path, progress=False)
     with open(tmp_path / "eval_ground_truth.csv") as f:
         evaluations = list(csv.DictReader(f))
     assert [float(row["timesteps"]) for row in evaluations] == [4, 8]
     assert all(row["closed_loop_first"] in ("0.0", "1.0", "nan") for row in evaluations)  # logged while training
+    assert (np.load(tmp_path / "eval" / "evaluations.npz")["ep_lengths"] == 1).all()  # made with eval.env_kwargs
     rows = evaluate_model(result.model_path, episodes=1, video_dir=tmp_path / "videos")
-    assert rows[0]["env_steps"] <= 3 and "closed_loop_first" in rows[0]
+    assert rows[0]["env_steps"] == 1 and "closed_loop_first" in rows[0]
     videos = list((tmp_path / "videos").glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 0
 
@@ -219,6 +220,9 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
         variant = load_agent_config(f"agents/ppo_{reward}.yaml")
         assert variant.env_kwargs == dict(emmi.env_kwargs, reward=reward)
         assert variant.hyperparameters == emmi.hyperparameters and variant.total_timesteps == emmi.total_timesteps
+    plans = load_agent_config("agents/ppo_plans_emmi.yaml")
+    assert plans.env_id == "emmi_gym/ExplorePlans-v0" and plans.hyperparameters == emmi.hyperparameters
+    assert plans.eval_env_kwargs == dict(plans.env_kwargs, world="dungeon_maps/test")  # held-out plans
     assert load_agent_config("agents/dqn_emmi.yaml").algorithm == "DQN"
     assert load_agent_config("agents/sac_velocity_emmi.yaml").algorithm == "SAC"
     assert "buffer_size" not in load_agent_config("agents/ppo_velocity_emmi.yaml").hyperparameters
@@ -241,7 +245,10 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
     ({"n_envs": 100000}, "n_envs", "an integer in [1, 64]"),
     ({"vec_env": "ray"}, "vec_env", "one of ['subproc', 'dummy']"),
     ({"eval": {"freq": -1}}, "eval.freq", "an integer in [1, "),
-    ({"eval": {"every": 3}}, "eval.every", "one of the known options ['freq', 'episodes', 'seed']"),
+    ({"eval": {"every": 3}}, "eval.every", "one of the known options ['freq', 'episodes', 'seed', 'env_kwargs']"),
+    ({"eval": {"env_kwargs": {"rewad": "emmi"}}}, "eval.env_kwargs.rewad", "one of the known options"),
+    ({"eval": {"env_kwargs": {"obs_size": 32}}}, "eval.env_kwargs",
+     "options that keep the training env's action and observation spaces"),
     ({"algorithm": "SAC", "hyperparameters": {}, "env": {"id": "emmi_gym/LoopCorridor-v0"}}, "algorithm",
      "an algorithm for the Discrete actions of emmi_gym/LoopCorridor-v0 (one of ['PPO', 'A2C', 'MaskablePPO', 'DQN'])"),
     ({"algorithm": "DQN", "hyperparameters": {}, "env": {"id": "emmi_gym/ExploreVelocity-v0"}}, "algorithm",

@@ -73,7 +73,7 @@ def run_job(job: Job) -> dict:
         from ..policies import make_policy
 
         trained = False
-        env = make_env(job.config.env_id, job.config.env_kwargs)
+        env = make_env(job.config.env_id, job.config.eval_env_kwargs)
         rows = run_episodes(env, PolicyActor(make_policy(job.variant)), range(job.episode_seed,
                                                                              job.episode_seed + job.episodes))
         env.close()

@@ -69,11 +69,15 @@ def algorithm_class(name: str):
 @dataclass(frozen=True)
 class EvalSchedule:
     """Evaluate every ``freq`` environment steps (summed over the envs) on ``episodes`` held-out
-    episodes seeded from ``seed`` on (the same episodes at every evaluation)."""
+    episodes seeded from ``seed`` on (the same episodes at every evaluation). ``env_kwargs``
+    override the training env's ``gym.make`` keywords in every held-out evaluation (the periodic
+    one, ``evaluate`` and the benchmark's), e.g. ``world: dungeon_maps/test`` to evaluate on the
+    test split of floor plans (rl-baselines3-zoo's ``eval_env_kwargs``)."""
 
     freq: int = option(2000, Integer(1, 10**10))
     episodes: int = option(4, Integer(1, 10**5))
     seed: int = option(100_000, Integer(0, 2**32 - 1))
+    env_kwargs: dict = option({}, Mapping())
 
     def __post_init__(self):
         check_fields(self)
@@ -96,6 +100,11 @@ class AgentConfig:
     eval: EvalSchedule = EvalSchedule()
     checkpoint_freq: int = 5000
     source: str = "<dict>"
+
+    @property
+    def eval_env_kwargs(self) -> dict:
+        """The ``gym.make`` keywords of the held-out evaluations: the training env's, updated by ``eval.env_kwargs``."""
+        return {**self.env_kwargs, **self.eval.env_kwargs}
 
     def as_yaml_dict(self) -> dict:
         """The configuration as a file would give it (what ``train`` writes beside the model)."""
@@ -188,9 +197,9 @@ def _check_hyperparameters(source: str, algorithm: str, hyper: dict) -> dict:
     return checked
 
 
-def _check_env(source: str, env_id: str, kwargs: dict, algorithm: str, policy: str) -> None:
+def _spaces(source: str, env_id: str, kwargs: dict, label: str):
     """Make the env once, here in the main process (a mistake then fails before any worker starts), and
-    check that the algorithm can drive its actions and the policy read its observations."""
+    return its action and observation spaces; a bad keyword names the field under ``label``."""
     import gymnasium as gym
 
     import emmi_gym  # noqa: F401  (registers the ids)
@@ -198,17 +207,33 @@ def _check_env(source: str, env_id: str, kwargs: dict, algorithm: str, policy: s
     try:
         env = gym.make(env_id, **kwargs)
     except FieldError as exc:
-        raise AgentConfigError(source, f"env.kwargs.{exc.field}", exc.expected, exc.got) from None
+        raise AgentConfigError(source, f"{label}.{exc.field}", exc.expected, exc.got) from None
     except ValueError as exc:
-        raise AgentConfigError(source, "env.kwargs", f"valid environment options ({exc})") from None
-    action, observation = type(env.action_space).__name__, type(env.observation_space).__name__
+        raise AgentConfigError(source, label, f"valid environment options ({exc})") from None
+    spaces = env.action_space, env.observation_space
     env.close()
-    if action not in _ACTION_SPACES[algorithm]:
-        raise AgentConfigError(source, "algorithm", f"an algorithm for the {action} actions of {env_id} (one of "
-                               f"{[a for a, kinds in _ACTION_SPACES.items() if action in kinds]})", algorithm)
-    if observation != _OBSERVATION_SPACES[policy]:
-        raise AgentConfigError(source, "policy", f"a policy for the {observation} observations of {env_id} (one of "
-                               f"{[p for p, kind in _OBSERVATION_SPACES.items() if kind == observation]})", policy)
+    return spaces
+
+
+def _check_env(source: str, config: AgentConfig) -> None:
+    """Check that the env and its evaluation variant can be made, that the algorithm can drive their
+    actions and the policy read their observations (the same spaces in both)."""
+    action_space, observation_space = _spaces(source, config.env_id, config.env_kwargs, "env.kwargs")
+    action, observation = type(action_space).__name__, type(observation_space).__name__
+    if action not in _ACTION_SPACES[config.algorithm]:
+        raise AgentConfigError(source, "algorithm", f"an algorithm for the {action} actions of {config.env_id} (one "
+                               f"of {[a for a, kinds in _ACTION_SPACES.items() if action in kinds]})",
+                               config.algorithm)
+    if observation != _OBSERVATION_SPACES[config.policy]:
+        raise AgentConfigError(source, "policy", f"a policy for the {observation} observations of {config.env_id} "
+                               f"(one of {[p for p, kind in _OBSERVATION_SPACES.items() if kind == observation]})",
+                               config.policy)
+    if config.eval.env_kwargs:
+        spaces = _spaces(source, config.env_id, config.eval_env_kwargs, "eval.env_kwargs")
+        if spaces != (action_space, observation_space):
+            raise AgentConfigError(source, "eval.env_kwargs", "options that keep the training env's action and "
+                                   f"observation spaces ({action_space}, {observation_space})",
+                                   f"{spaces[0]}, {spaces[1]}")
 
 
 def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
@@ -251,5 +276,5 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
         vec_env=field("vec_env", Choice(VEC_ENVS), "subproc"), total_timesteps=field("total_timesteps", _STEPS, 20_000),
         seed=field("seed", Integer(0, 2**32 - 1), 0), eval=eval_schedule,
         checkpoint_freq=field("checkpoint_freq", _STEPS, 5000), source=source)
-    _check_env(source, env_id, kwargs, algorithm, policy)
+    _check_env(source, config)
     return config

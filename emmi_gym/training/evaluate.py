@@ -15,13 +15,14 @@ EVALUATION_SEED = 200_000
 
 
 def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, video_dir=None) -> list[dict]:
-    """Run ``episodes`` episodes of the model in the environment of its run's configuration."""
+    """Run ``episodes`` episodes of the model in the held-out evaluation's environment of its run's
+    configuration (the training env with ``eval.env_kwargs``)."""
     model_path = Path(model_path)
     if not model_path.is_file():
         raise FileNotFoundError(f"no model at {model_path}")
     config = load_run_config(model_path)
     model = algorithm_class(config.algorithm).load(model_path, device="cpu")
-    env = make_env(config.env_id, config.env_kwargs, render_mode="rgb_array" if video_dir else None)
+    env = make_env(config.env_id, config.eval_env_kwargs, render_mode="rgb_array" if video_dir else None)
     if video_dir is not None:
         from gymnasium.wrappers import RecordVideo
 

@@ -78,12 +78,14 @@ def make_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_w
     return LoopOrderInfo(gym.make(env_id, render_mode=render_mode, **kwargs))
 
 
-def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str):
-    """SB3 vectorised envs (Monitor-wrapped): subprocesses when asked and there is more than one env."""
+def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, evaluation: bool = False):
+    """SB3 vectorised envs (Monitor-wrapped): subprocesses when asked and there is more than one env;
+    with ``evaluation``, envs made with the held-out evaluation's keywords (``eval.env_kwargs``)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
 
     subprocesses = vec_env == "subproc" and n_envs > 1
-    return sb3_make_vec_env(partial(make_env, config.env_id, config.env_kwargs, vec_worker=subprocesses),
+    kwargs = config.eval_env_kwargs if evaluation else config.env_kwargs
+    return sb3_make_vec_env(partial(make_env, config.env_id, kwargs, vec_worker=subprocesses),
                             n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if subprocesses else DummyVecEnv)
 
 
@@ -252,7 +254,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
 
     env = make_vec_env(config, config.n_envs, config.seed, config.vec_env)
-    eval_env = make_vec_env(config, 1, config.eval.seed, "dummy")
+    eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True)
     cls = algorithm_class(config.algorithm)
     if start is not None:
         model = cls.load(start, env=env, tensorboard_log=str(run_dir / "tb"))
