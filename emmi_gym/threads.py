@@ -23,6 +23,9 @@ from concurrent.futures import Future
 
 _threads = max(1, os.cpu_count() or 1)
 
+#: Kernels whose items are grid cells give a thread at least this many (fewer are not worth its start).
+MIN_CELLS_PER_THREAD = 20000
+
 
 class _DaemonPool:
     """Worker threads that take calls from one queue and never keep the process alive."""

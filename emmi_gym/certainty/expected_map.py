@@ -4,15 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..threads import run_in_chunks
+from ..threads import MIN_CELLS_PER_THREAD, run_in_chunks
 from . import _kernels
 from .grids import ParticleGrids
 from .information import (DEFAULT_OBSERVED_TOL, cell_information, information_and_observed, max_entropy_bits,
                           observed_cells, unobserved_halfwidth)
 from .weights import normalize_weights
-
-#: Fewer disputed cells than this per thread are not worth a thread's start.
-_CELLS_PER_THREAD = 20000
 
 
 def expected_map(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False) -> np.ndarray:
@@ -56,7 +53,7 @@ def emmi_of_parts(grids, disputed, weights, agreed_counts, *, lut, log_weights: 
     information, observed = np.empty(cells.size), np.empty(cells.size, dtype=np.bool_)
     max_bits = max_entropy_bits(observed_tol)
     run_in_chunks(_kernels.information_at, cells.size, pg.flat, cells, pg.weights, pg.lut, pg.offset, max_bits,
-                  unobserved_halfwidth(max_bits), information, observed, min_chunk=_CELLS_PER_THREAD)
+                  unobserved_halfwidth(max_bits), information, observed, min_chunk=MIN_CELLS_PER_THREAD)
     info, n_obs = float(information.sum()), int(np.count_nonzero(observed))
     counts, table = np.asarray(agreed_counts), pg.lut
     observed = (counts > 0) & observed_cells(table, observed_tol)

@@ -213,72 +213,75 @@ DISPUTED = 1000
 
 
 @nb.njit(cache=True, inline="always")
-def _agrees(codes, hits, particles, row, col):
-    """Whether the grids of ``particles`` hold the same code and the same mean hit point at (row, col)."""
+def _agrees(codes, hits, particles, cell):
+    """Whether the grids of ``particles`` hold the same code and the same mean hit point at ``cell``."""
     first = particles[0]
-    c0 = codes[first, row, col]
+    c0 = codes[first, cell]
     for j in range(1, particles.size):
         i = particles[j]
-        if codes[i, row, col] != c0:
+        if codes[i, cell] != c0:
             return False
         for k in range(3):
-            if hits[i, row, col, k] != hits[first, row, col, k]:
+            if hits[i, cell, k] != hits[first, cell, k]:
                 return False
     return True
 
 
+@nb.njit(cache=True, nogil=True)
+def agreement_of_cells(start, stop, codes, hits, particles, cells, out):
+    """``out[k]``, for k in [start, stop): the code the grids of ``particles`` share at ``cells[k]`` (with
+    the same mean hit point), or DISPUTED. The grids come as flat views, ``codes`` (M, N) and
+    ``hits`` (M, N, 3); chunks of cells may run on parallel threads."""
+    for k in range(start, stop):
+        cell = cells[k]
+        out[k] = codes[particles[0], cell] if _agrees(codes, hits, particles, cell) else DISPUTED
+
+
 @nb.njit(cache=True)
-def refresh_agreement(codes, hits, particles, cells, status, agreed_counts, disputed, n_disputed, position):
-    """Re-derive whether the particles agree on each cell of ``cells`` (flat indices, no repeats).
+def record_agreement(cells, agreement, status, agreed_counts, disputed, n_disputed, position):
+    """Store the agreement of ``cells`` (flat indices, no repeats; ``agreement`` from
+    :func:`agreement_of_cells`) in the flat ``status``, keeping its bookkeeping current.
 
-    Only the grids of ``particles`` are compared (all of them, or after a resampling the
-    survivors, whose copies hold the same values).
-
-    ``status`` (H, W) int16 holds an agreed cell's code, or DISPUTED; ``agreed_counts``
-    (256) how many agreed cells hold each code (index code + 128); ``disputed[:n_disputed]``
-    lists the disputed cells (flat indices, any order) and ``position`` (H, W) each one's
-    place in that list (-1: not listed). Returns the new length of the list.
+    ``status`` holds an agreed cell's code, or DISPUTED; ``agreed_counts`` (256) how many
+    agreed cells hold each code (index code + 128); ``disputed[:n_disputed]`` lists the
+    disputed cells (flat indices, any order) and ``position`` each one's place in that list
+    (-1: not listed). Returns the new length of the list.
     """
-    w = codes.shape[2]
     for k in range(cells.size):
         cell = cells[k]
-        row = cell // w
-        col = cell - row * w
-        old = status[row, col]
+        old, code = status[cell], agreement[k]
         if old != DISPUTED:
             agreed_counts[old + 128] -= 1
-        if _agrees(codes, hits, particles, row, col):
-            code = codes[particles[0], row, col]
-            status[row, col] = code
+        status[cell] = code
+        if code != DISPUTED:
             agreed_counts[code + 128] += 1
-            p = position[row, col]
+            p = position[cell]
             if p >= 0:  # unlist: the last entry takes its place
                 n_disputed -= 1
                 last = disputed[n_disputed]
                 disputed[p] = last
-                position[last // w, last - (last // w) * w] = p
-                position[row, col] = -1
-        else:
-            status[row, col] = DISPUTED
-            if position[row, col] < 0:
-                disputed[n_disputed] = cell
-                position[row, col] = n_disputed
-                n_disputed += 1
+                position[last] = p
+                position[cell] = -1
+        elif position[cell] < 0:
+            disputed[n_disputed] = cell
+            position[cell] = n_disputed
+            n_disputed += 1
     return n_disputed
 
 
 @nb.njit(cache=True, nogil=True)
-def resample_cells(start, stop, codes, hits, coarse, block, cells, parents):
+def resample_cells(start, stop, codes, hits, coarse, block, width, cells, parents):
     """Particle i in [start, stop) takes particle ``parents[i]``'s code and mean hit point at each of
     ``cells`` (flat indices, increasing), keeping the occupied-cell counts per block ``coarse``
     current.
 
+    The grids come as flat views (``codes`` (M, N), ``hits`` (M, N, 3), rows of ``width``
+    cells): a cell's row and column are computed only where its occupied state flips.
     ``parents`` keeps survivors in place (``parents[parents[i]] == parents[i]``), so a source
     is never overwritten: each dead particle's grid is filled from its parent's, grid by grid
     in memory order, and chunks of particles may run on parallel threads. Elsewhere every
     grid already holds the same values, so nothing else needs copying.
     """
-    w = codes.shape[2]
     for i in range(start, stop):
         p = parents[i]
         if p == i:
@@ -287,11 +290,10 @@ def resample_cells(start, stop, codes, hits, coarse, block, cells, parents):
         source_hits, target_hits, target_coarse = hits[p], hits[i], coarse[i]
         for k in range(cells.size):
             cell = cells[k]
-            row = cell // w
-            col = cell - row * w
-            new = source[row, col]
-            if (target[row, col] > 0) != (new > 0):
-                target_coarse[row // block, col // block] += 1 if new > 0 else -1
-            target[row, col] = new
+            new = source[cell]
+            if (target[cell] > 0) != (new > 0):
+                row = cell // width
+                target_coarse[row // block, (cell - row * width) // block] += 1 if new > 0 else -1
+            target[cell] = new
             for axis in range(3):
-                target_hits[row, col, axis] = source_hits[row, col, axis]
+                target_hits[cell, axis] = source_hits[cell, axis]

@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import certainty
 from ..grid import GridGeometry
-from ..threads import chunk_bounds, run_calls, run_in_chunks
+from ..threads import MIN_CELLS_PER_THREAD, chunk_bounds, run_calls, run_in_chunks
 from . import _kernels
 from .sensor_model import CellCodes
 
@@ -141,15 +141,21 @@ class ParticleMaps:
         self._refresh(touched[:scratch[0].n_touched], np.arange(self.n_particles))
 
     def _refresh(self, cells: np.ndarray, particles: np.ndarray) -> None:
-        """Re-derive the agreement of ``cells`` among the grids of ``particles``, then keep the disputed
-        list in memory order (passes over it then read the grids front to back; timsort takes the
-        mostly sorted list in near-linear time)."""
-        self._n_disputed = _kernels.refresh_agreement(self.codes, self.hits, particles, cells, self.status,
-                                                      self.agreed_counts, self._disputed, self._n_disputed,
-                                                      self._position)
+        """Re-derive the agreement of ``cells`` among the grids of ``particles`` (on the kernel threads),
+        then keep the disputed list in memory order (passes over it then read the grids front to
+        back; timsort takes the mostly sorted list in near-linear time)."""
+        agreement = np.empty(cells.size, dtype=np.int16)
+        run_in_chunks(_kernels.agreement_of_cells, cells.size, *self._flat_grids(), particles, cells, agreement,
+                      min_chunk=MIN_CELLS_PER_THREAD)
+        self._n_disputed = _kernels.record_agreement(cells, agreement, _flat(self.status), self.agreed_counts,
+                                                     self._disputed, self._n_disputed, _flat(self._position))
         listed = self.disputed_cells
         listed.sort(kind="stable")
         self._position.reshape(-1)[listed] = np.arange(listed.size, dtype=np.int32)
+
+    def _flat_grids(self) -> tuple[np.ndarray, np.ndarray]:
+        """``codes`` as (M, H * W) and ``hits`` as (M, H * W, 3): views, for kernels that index cells flat."""
+        return _flat(self.codes, self.n_particles), _flat(self.hits, self.n_particles, 3)
 
     def resample(self, parents: np.ndarray) -> None:
         """Particle i takes the grid of particle ``parents[i]``, an arrangement that keeps survivors in
@@ -163,8 +169,8 @@ class ParticleMaps:
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
         cells = self.disputed_cells.copy()
-        run_in_chunks(_kernels.resample_cells, self.n_particles, self.codes, self.hits, self.coarse, self.block, cells,
-                      parents)
+        run_in_chunks(_kernels.resample_cells, self.n_particles, *self._flat_grids(), self.coarse, self.block,
+                      self.geometry.cols, cells, parents)
         self.counts = self.counts[parents]
         self._refresh(cells, np.unique(parents))
 
@@ -216,6 +222,14 @@ class ParticleMaps:
         self._disputed = np.empty(self.geometry.rows * self.geometry.cols, dtype=np.int32)
         self._disputed[:n] = (rows + down * cells) * self.geometry.cols + cols + left * cells
         return True
+
+
+def _flat(array: np.ndarray, *shape: int) -> np.ndarray:
+    """A view of ``array`` with its two grid axes (after the leading ``shape[:1]``) joined; never a copy
+    (writes through it must reach ``array``: a layout that would need one raises)."""
+    view = array.view()
+    view.shape = (*shape[:1], -1, *shape[1:])
+    return view
 
 
 class _InsertionScratch:
