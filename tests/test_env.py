@@ -412,6 +412,38 @@ def test_a_loop_through_unseen_space_is_offered_by_the_length_of_its_route():
     assert start and 1.0 - 1.0 / start[0].gain >= 1.0 - 1.0 / LOOP_RATIO
 
 
+def test_planning_covers_the_explored_part_of_a_large_map_with_the_same_costs(monkeypatch):
+    """A room of 6 m x 4 m explored in a 60 m x 40 m map: the costs are computed over the room plus
+    PLANNING_MARGIN, and equal those over the whole map (paths, route lengths, frontiers)."""
+    from emmi_gym.grid import GridGeometry
+    from emmi_gym.navigation import planner
+    from emmi_gym.navigation.candidates import frontier_targets
+
+    geometry = GridGeometry(0.1, 0.0, 0.0, 400, 600)
+    em = np.full(geometry.shape, 0.5)
+    em[200:240, 300:360] = 0.1                           # the room, known free, open to the east at x = 36 m
+    em[199, 300:361] = em[240, 300:361] = em[199:241, 299] = 0.9
+    em[200:215, 360] = em[225:241, 360] = 0.9            # a doorway at y = 21.5..22.5 m
+    windowed = planner.travel_costs(em, geometry, (31.0, 21.0), 0.2)
+    rows, cols = windowed.cumulative.shape
+    margin = round(planner.PLANNING_MARGIN / geometry.resolution)
+    assert (rows, cols) == (42 + 2 * margin, 62 + 2 * margin)
+    monkeypatch.setattr(planner, "PLANNING_MARGIN", 100.0)  # the window is then the whole map
+    whole = planner.travel_costs(em, geometry, (31.0, 21.0), 0.2)
+    assert whole.cumulative.shape == geometry.shape
+    inside = whole.cumulative[windowed.window]
+    assert np.array_equal(np.isfinite(inside), np.isfinite(windowed.cumulative))
+    assert np.allclose(inside[np.isfinite(inside)], windowed.cumulative[np.isfinite(windowed.cumulative)])
+    for x, y in [(35.5, 23.5), (36.5, 22.0), (30.6, 20.6)]:
+        assert windowed.cost_to(x, y) == pytest.approx(whole.cost_to(x, y))
+        assert windowed.path_to(x, y) == whole.path_to(x, y)
+    assert windowed.cost_to(5.0, 5.0) == np.inf and np.isfinite(whole.cost_to(5.0, 5.0))  # far off: not planned
+    assert windowed.route_lengths(np.array([[35.5, 23.5]])) == pytest.approx(whole.route_lengths(
+        np.array([[35.5, 23.5]])))
+    assert frontier_targets(em, windowed) == frontier_targets(em, whole)
+    assert len(frontier_targets(em, windowed)) == 1
+
+
 def test_a_wall_seen_at_glancing_angles_hides_no_frontier_behind_it():
     """A corridor whose side walls the laser only grazed: a broken line of cells just above 0.5 among
     cells just below it (values as on the real buildings' expected maps), unknown space behind. The

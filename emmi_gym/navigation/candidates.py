@@ -51,7 +51,8 @@ def frontier_targets(expected_map: np.ndarray, costs: CostMap,
     front of it, and the unknown behind it gave rows of frontiers that vanished as the
     robot drove near (seen on the real buildings, where they ended many macro-actions blocked).
     """
-    geometry = costs.geometry
+    geometry, window = costs.geometry, costs.window
+    expected_map = expected_map[window]  # frontiers next to unknown space lie well inside the planning window
     free = expected_map < FREE_P
     observed = observed_cells(expected_map, observed_tol)
     near_obstacle = ndimage.binary_dilation(observed & (expected_map > 0.5), iterations=2)
@@ -63,8 +64,8 @@ def frontier_targets(expected_map: np.ndarray, costs: CostMap,
         rows, cols = np.nonzero(labels[cluster] == index)
         if rows.size < MIN_FRONTIER_CELLS:
             continue
-        rows, cols = rows + cluster[0].start, cols + cluster[1].start
-        cell_costs = costs.cumulative[rows, cols] * geometry.resolution
+        rows, cols = rows + cluster[0].start + window[0].start, cols + cluster[1].start + window[1].start
+        cell_costs = costs.costs_at(rows, cols)
         away = np.hypot(rows - costs.start[0], cols - costs.start[1]) * geometry.resolution
         eligible = (away >= MIN_TRAVEL) & np.isfinite(cell_costs)
         if not eligible.any():

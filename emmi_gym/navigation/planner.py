@@ -11,6 +11,7 @@ import numpy as np
 from scipy import ndimage
 from skimage.graph import MCP_Geometric
 
+from ..certainty import observed_cells
 from ..grid import GridGeometry
 
 OCCUPIED_P = 0.65   # expected-map probability above which a cell is surely an obstacle
@@ -24,27 +25,43 @@ UNKNOWN_COST = 2.0  # unknown cells may be crossed (optimistic planning), at twi
 PREFERRED_CLEARANCE = 0.8  # m from an obstacle beyond which a cell costs no extra
 CLEARANCE_COST = 8.0       # extra cost per cell at the impassable limit
 KEEP_OUT_MARGIN = 0.05     # m beyond the robot's radius that a path must keep from obstacles
+PLANNING_MARGIN = 2.0      # m of unknown round the observed area within which paths are planned
 
 
 @dataclass
 class CostMap:
-    """Travel costs from the robot over an expected map; ``cumulative`` is inf where unreachable.
+    """Travel costs from the robot over an expected map, within a window of it.
 
-    ``traceback`` and ``offsets`` are scikit-image's MCP result (for each cell, the index of the
-    step that reached it; -1 at the start), kept as plain arrays so the env can be pickled;
-    ``start`` is the (row, col) the costs are measured from."""
+    ``geometry`` is the whole map's; the costs were computed over the window of cells whose
+    (row, col) is ``corner`` plus the window's own indices: ``cumulative`` (inf where
+    unreachable), and scikit-image's MCP result ``traceback`` and ``offsets`` (for each
+    cell, the index of the step that reached it; -1 at the start), kept as plain arrays so
+    the env can be pickled. ``start`` is the whole map's (row, col) the costs are measured
+    from. Cells outside the window are unreachable."""
 
     geometry: GridGeometry
     cumulative: np.ndarray
     traceback: np.ndarray
     offsets: np.ndarray
     start: tuple[int, int]
+    corner: tuple[int, int] = (0, 0)
+
+    @property
+    def window(self) -> tuple[slice, slice]:
+        """The window, as slices of the whole map's arrays."""
+        (r0, c0), (rows, cols) = self.corner, self.cumulative.shape
+        return slice(r0, r0 + rows), slice(c0, c0 + cols)
+
+    def costs_at(self, rows, cols) -> np.ndarray:
+        """Travel cost in metres to the whole map's cells (rows, cols); inf where unreachable."""
+        r, c = np.asarray(rows) - self.corner[0], np.asarray(cols) - self.corner[1]
+        inside = (r >= 0) & (r < self.cumulative.shape[0]) & (c >= 0) & (c < self.cumulative.shape[1])
+        costs = np.full(np.shape(r), np.inf)
+        costs[inside] = self.cumulative[r[inside], c[inside]] * self.geometry.resolution
+        return costs
 
     def cost_to(self, x: float, y: float) -> float:
-        row, col = self.geometry.cell_of(x, y)
-        if not self.geometry.inside(row, col):
-            return float("inf")
-        return float(self.cumulative[row, col]) * self.geometry.resolution
+        return float(self.costs_at(*self.geometry.cell_of(x, y)))
 
     def path_to(self, x: float, y: float, spacing: float = 0.5) -> list[tuple[float, float]]:
         """Waypoints (x, y) every ``spacing`` metres along the cheapest path, ending at the target cell."""
@@ -64,14 +81,12 @@ class CostMap:
         """
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         rows, cols = self.geometry.cell_of(xy[:, 0], xy[:, 1])
-        rows, cols = np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
         lengths = np.full(len(xy), np.inf)
-        inside = self.geometry.inside(rows, cols)
-        inside[inside] = np.isfinite(self.cumulative[rows[inside], cols[inside]])
-        lengths[inside] = 0.0
+        reachable = np.isfinite(self.costs_at(rows, cols))
+        lengths[reachable] = 0.0
         step_lengths = np.hypot(*self.offsets.T) * self.geometry.resolution
-        walking = np.flatnonzero(inside)
-        r, c = rows[walking], cols[walking]
+        walking = np.flatnonzero(reachable)
+        r, c = rows[walking] - self.corner[0], cols[walking] - self.corner[1]
         while walking.size:
             step = self.traceback[r, c]
             going = step >= 0
@@ -81,13 +96,15 @@ class CostMap:
         return lengths
 
     def _cells_to(self, row: int, col: int) -> list[tuple[int, int]]:
-        """The cells from the start to (row, col), walking the traceback back (``MCP.traceback``'s walk)."""
-        if not np.isfinite(self.cumulative[row, col]):
+        """The whole map's cells from the start to (row, col), walking the traceback back (``MCP.traceback``'s walk)."""
+        if not np.isfinite(self.costs_at(row, col)):
             raise ValueError(f"no path to cell ({row}, {col}): it is unreachable")
-        cells = [(row, col)]
+        r0, c0 = self.corner
+        row, col = row - r0, col - c0
+        cells = [(row + r0, col + c0)]
         while (step := self.traceback[row, col]) >= 0:
             row, col = row - int(self.offsets[step, 0]), col - int(self.offsets[step, 1])
-            cells.append((row, col))
+            cells.append((row + r0, col + c0))
         return cells[::-1]
 
 
@@ -104,23 +121,47 @@ def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, rob
     may be crossed: a loop-closing target behind a stretch not yet seen is reachable).
     The robot's own footprint is passable (at the inflated cost), so that a robot
     brushing a wall can still leave.
+
+    The costs are computed within :func:`planning_window` only (what the robot has observed,
+    plus ``PLANNING_MARGIN`` of unknown round it), so that planning costs what has been
+    explored, not the whole map's extent.
     """
     res = geometry.resolution
+    start = _clipped_cell(geometry, start_xy)
+    goal = None if goal_xy is None else _clipped_cell(geometry, goal_xy)
+    window = planning_window(expected_map, geometry, [start] + ([goal] if goal else []))
+    corner = (window[0].start, window[1].start)
+    expected_map = expected_map[window]
     obstacle = expected_map > blocking_p
     clearance = ndimage.distance_transform_edt(~obstacle) * res
     costs = np.where(expected_map < FREE_P, 1.0, UNKNOWN_COST)
     keep_out = robot_radius + KEEP_OUT_MARGIN
     soft = max(PREFERRED_CLEARANCE, 2 * keep_out)
     costs = costs + CLEARANCE_COST * np.clip((soft - clearance) / (soft - keep_out), 0.0, 1.0) ** 2
-    x, y = geometry.cell_centres()
+    rows, cols = np.ogrid[:costs.shape[0], :costs.shape[1]]
+    x, y = geometry.centre_of(rows + corner[0], cols + corner[1])
     footprint = np.hypot(x - start_xy[0], y - start_xy[1]) <= robot_radius + res
     costs[(clearance < keep_out) & ~(footprint & ~obstacle)] = np.inf
-    row, col = _clipped_cell(geometry, start_xy)
+    row, col = start[0] - corner[0], start[1] - corner[1]
     costs[row, col] = max(float(costs[row, col]), 1.0) if np.isfinite(costs[row, col]) else 5.0
     mcp = MCP_Geometric(costs)
-    ends = None if goal_xy is None else [_clipped_cell(geometry, goal_xy)]
+    ends = None if goal is None else [(goal[0] - corner[0], goal[1] - corner[1])]
     cumulative, traceback = mcp.find_costs([(row, col)], ends)
-    return CostMap(geometry, cumulative, np.asarray(traceback), np.asarray(mcp.offsets), (row, col))
+    return CostMap(geometry, cumulative, np.asarray(traceback), np.asarray(mcp.offsets), start, corner)
+
+
+def planning_window(expected_map: np.ndarray, geometry: GridGeometry, cells) -> tuple[slice, slice]:
+    """The part of the map worth planning over: the bounding box of the observed cells (eq. 10's
+    sense) and of ``cells`` (the start, a goal), grown by ``PLANNING_MARGIN`` metres of unknown.
+    Obstacles are observed, so every obstacle lies inside it; a path could leave it only to
+    cross more than that much space never seen, which no target asks for."""
+    observed = observed_cells(expected_map)
+    rows, cols = np.flatnonzero(observed.any(axis=1)), np.flatnonzero(observed.any(axis=0))
+    rows = np.concatenate([rows[[0, -1]] if rows.size else [], [r for r, _ in cells]])
+    cols = np.concatenate([cols[[0, -1]] if cols.size else [], [c for _, c in cells]])
+    margin = int(math.ceil(PLANNING_MARGIN / geometry.resolution))
+    return (slice(max(0, int(rows.min()) - margin), min(geometry.rows, int(rows.max()) + margin + 1)),
+            slice(max(0, int(cols.min()) - margin), min(geometry.cols, int(cols.max()) + margin + 1)))
 
 
 def _clipped_cell(geometry: GridGeometry, xy) -> tuple[int, int]:
