@@ -155,11 +155,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from .training.episodes import summarise
     from .training.evaluate import evaluate_model, format_table
-    from .training.train import set_torch_threads
+    from .training.train import load_run_config, set_torch_threads
 
     set_torch_threads(args.torch_threads)
     if args.episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
+    config = load_run_config(args.model) if Path(args.model).is_file() else None
+    if config is not None:
+        print(f"evaluating on {config.env_id} ({config.eval_env_kwargs}), episodes seeded from {args.seed}")
     rows = evaluate_model(args.model, args.episodes, args.seed, args.video)
     print(format_table(rows))
     print("\nmean over episodes:")
