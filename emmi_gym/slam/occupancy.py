@@ -151,7 +151,7 @@ class ParticleMaps:
                                                      self._disputed, self._n_disputed, _flat(self._position))
         listed = self.disputed_cells
         listed.sort(kind="stable")
-        self._position.reshape(-1)[listed] = np.arange(listed.size, dtype=np.int32)
+        _flat(self._position)[listed] = np.arange(listed.size, dtype=np.int32)
 
     def _flat_grids(self) -> tuple[np.ndarray, np.ndarray]:
         """``codes`` as (M, H * W) and ``hits`` as (M, H * W, 3): views, for kernels that index cells flat."""
