@@ -81,7 +81,7 @@ def test_spaces_and_info():
     expected = info["reward_components"]["emmi"] + info["reward_components"]["time"] + \
         info["reward_components"]["collision"]
     assert reward == pytest.approx(expected)
-    assert info["sim_steps_this_step"] > 10
+    assert info["sim_steps_this_step"] > 10 and info["target_kind"] == "frontier"
     assert all(set(row) >= {"step", "emmi", "joint_entropy", "neff"} for row in info["rbpf_updates"])
     image = gym.make("emmi_gym/LoopCorridor-v0", observation="image", obs_size=48, **SMALL)
     assert image.observation_space.shape == (2, 48, 48)

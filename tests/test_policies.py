@@ -95,4 +95,6 @@ def test_active_loop_closing_runs_on_a_plan():
     for _ in range(6):
         action = policy(env)
         assert env.unwrapped.action_masks()[action]
-        env.step(action)
+        chosen = env.unwrapped.targets[action]
+        _, _, _, _, info = env.step(action)
+        assert info["target_kind"] == (chosen.kind if chosen is not None else "none")

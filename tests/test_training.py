@@ -298,6 +298,7 @@ def _tiny_benchmark(tmp_path, **kwargs):
     with open(files["episodes"]) as f:
         rows = list(csv.DictReader(f))
     assert sorted({r["variant"] for r in rows}) == ["coverage", "emmi", "frontier"]
+    assert all(0.0 <= float(r["revisit_share"]) <= 1.0 for r in rows)  # waypoint decisions: a share of them
     assert files["curves"].stat().st_size > 0 and files["final"].stat().st_size > 0
     return sorted(rows, key=lambda r: (r["variant"], r["seed"]))
 

@@ -154,8 +154,9 @@ class EmmiEnv(gym.Env):
         if self.slam is None:
             raise RuntimeError("call reset() before step()")
         steps0, collisions0 = self.sim_steps, self.collisions
+        target_kind = None
         if self.config.action_mode == "waypoint":
-            self._macro_step(int(action))
+            target_kind = self._macro_step(int(action))
             self.decisions += 1
         else:
             v, omega = self._velocity(action)
@@ -171,6 +172,8 @@ class EmmiEnv(gym.Env):
                      (self.config.action_mode == "waypoint" and self.decisions >= self.config.max_decisions))
         observation, info = self._observation(), self._info(components)
         info["sim_steps_this_step"] = self.sim_steps - steps0
+        if target_kind is not None:
+            info["target_kind"] = target_kind
         if self.render_mode == "human":
             self.render()
         return observation, reward, bool(terminated), bool(truncated and not terminated), info
@@ -183,7 +186,9 @@ class EmmiEnv(gym.Env):
             fv, fw = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         return float(fv) * limits[0], float(fw) * limits[1]
 
-    def _macro_step(self, action: int) -> None:
+    def _macro_step(self, action: int) -> str:
+        """Go to the target of slot ``action``; the kind of target it was ("frontier", "revisit", or
+        "none" for an empty slot)."""
         if not 0 <= action < self.config.n_actions:
             raise ValueError(f"action {action} is outside Discrete({self.config.n_actions})")
         target: Target | None = self._slots[action]
@@ -194,6 +199,7 @@ class EmmiEnv(gym.Env):
         if outcome == "stayed":  # an empty slot, or a target the robot cannot leave for: stand still
             for _ in range(STAY_STEPS):
                 self._sim_step(0.0, 0.0)
+        return "none" if target is None else target.kind
 
     def _scan_now(self) -> np.ndarray:
         """The laser scan at the current simulator time, cast once and shared by the safety layer and the filter."""

@@ -36,6 +36,7 @@ TABLE_COLUMNS = {
     "coverage": "coverage",
     "reached_target": "reached the coverage target",
     "sim_steps_to_target": "simulator steps to the target",
+    "revisit_share": "decisions that went back to a revisit target",
     LOOP_ORDER_KEY: "closed the loop before the new area",
 }
 

@@ -49,18 +49,22 @@ def run_episode(env, actor, seed: int) -> dict:
     not reached); where the episode starts at a loop's decision point and ``env`` is wrapped in
     :class:`~emmi_gym.training.loop_order.LoopOrderInfo` (as ``make_env`` does),
     ``closed_loop_first`` is 1.0 if the robot went back to the loop's start before entering the
-    new area, 0.0 if it entered the new area first, NaN if neither.
+    new area, 0.0 if it entered the new area first, NaN if neither. ``revisit_share`` is the
+    fraction of waypoint decisions that chose a revisit target (``info["target_kind"]``; NaN
+    in velocity mode): how much of its time the policy spent going back to close loops.
     """
     observation, _ = env.reset(seed=seed)
     actor.reset(seed)
-    total, steps, terminated, truncated = 0.0, 0, False, False
+    total, steps, revisits, terminated, truncated = 0.0, 0, 0, False, False
     while not (terminated or truncated):
         observation, reward, terminated, truncated, info = env.step(actor(env, observation))
         total += float(reward)
         steps += 1
+        revisits += info.get("target_kind") == "revisit"
     row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in GROUND_TRUTH},
            "reached_target": float(terminated),
-           "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan}
+           "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan,
+           "revisit_share": revisits / steps if "target_kind" in info else math.nan}
     if LOOP_ORDER_KEY in info:
         row[LOOP_ORDER_KEY] = info[LOOP_ORDER_KEY]
     return row
