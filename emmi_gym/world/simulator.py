@@ -125,9 +125,11 @@ class Simulator:
             self.control_body.velocity = (v * math.cos(heading), v * math.sin(heading))
             self.control_body.angular_velocity = omega
             self.space.step(dt)
-            # a collision is driving into a wall, not resting beside it or driving away
-            collided |= any(n.x * v * math.cos(heading) + n.y * v * math.sin(heading) > 1e-6
-                            for n in self._contact_normals())
+            # a collision is driving into a wall, not resting beside it or driving away (standing
+            # still, or once a collision is known, the contacts need not be read)
+            if v != 0.0 and not collided:
+                collided = any(n.x * v * math.cos(heading) + n.y * v * math.sin(heading) > 1e-6
+                               for n in self._contact_normals())
         after = self.true_pose
         reading = noisy_motion(*relative_motion(before, after), self.odometry_noise, self.rng)
         self.odometry_pose = compose_motion(self.odometry_pose, *reading)
@@ -137,7 +139,7 @@ class Simulator:
     def _contact_normals(self) -> list:
         """Unit normals from the robot into each wall it touches (pymunk passes the body's shape first)."""
         normals: list = []
-        self.body.each_arbiter(lambda arbiter: normals.append(arbiter.contact_point_set.normal))
+        self.body.each_arbiter(lambda arbiter: normals.append(arbiter.normal))
         return normals
 
     def scan(self) -> np.ndarray:
