@@ -174,14 +174,21 @@ def summary(results: list[dict]) -> dict[str, dict[str, tuple]]:
     return table
 
 
+def measured_columns(table: dict, columns=tuple(TABLE_COLUMNS)) -> list[str]:
+    """The ``columns`` that some variant of a :func:`summary` has a value for (the loop order only on
+    ``LoopCorridor-v0``, the revisit share only in waypoint mode)."""
+    return [c for c in columns if any(entry[c][3] > 0 for entry in table.values())]
+
+
 def markdown(results: list[dict], header: str) -> str:
     table = summary(results)
-    lines = [header, "", "| variant | " + " | ".join(TABLE_COLUMNS.values()) + " |",
-             "| --- |" + " --- |" * len(TABLE_COLUMNS)]
+    columns = measured_columns(table)
+    lines = [header, "", "| variant | " + " | ".join(TABLE_COLUMNS[c] for c in columns) + " |",
+             "| --- |" + " --- |" * len(columns)]
     for variant, entry in table.items():
         name = f"{variant} ({entry['agents']} agents)" if entry["agents"] else f"{variant} (scripted)"
         cells = []
-        for column in TABLE_COLUMNS:
+        for column in columns:
             mean, low, high, n = entry[column]
             digits = 0 if column == "sim_steps_to_target" else 3
             if n == 0:
@@ -229,8 +236,9 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
     plt.close(fig)
 
     table = summary(results)
-    columns = ("oracle_accuracy", "wall_consistency", "map_accuracy", "ate", "coverage", LOOP_ORDER_KEY)
-    fig, axes = plt.subplots(1, len(columns), figsize=(18, 3.4))
+    columns = measured_columns(table, ("oracle_accuracy", "wall_consistency", "map_accuracy", "ate", "coverage",
+                                       "revisit_share", LOOP_ORDER_KEY))
+    fig, axes = plt.subplots(1, len(columns), figsize=(3 * len(columns), 3.4))
     names = list(table)
     for ax, column in zip(axes, columns):
         stats_ = [table[v][column] for v in names]
