@@ -140,7 +140,18 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
         assert archive.testzip() is None
 
 
-def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monkeypatch):
+@pytest.fixture
+def sigint_as_in_a_terminal():
+    """SIGINT raising KeyboardInterrupt, as in a terminal, however the suite was started: a shell runs
+    background jobs with SIGINT ignored, and training then rightly leaves it ignored."""
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monkeypatch, sigint_as_in_a_terminal):
     """A Ctrl-C that arrives while numba loads a kernel raises KeyboardInterrupt inside llvmlite's ctypes
     callback, which drops it (printing a traceback): training went on (the other rare failure of the
     SIGINT test). Here the signal arrives inside a ctypes callback the same way: training must stop at
