@@ -8,6 +8,10 @@ most here, so this is the check that a reward and discount make closing the loop
 learning (see emmi_gym/training/semi_markov.py for why the discount follows robot time).
 
     python scripts/reward_returns.py --seeds 8        # about 4 min on two cores
+    python scripts/reward_returns.py --seeds 12 --env-kwargs '{odometry_noise: poor}'
+
+``--env-kwargs`` (a YAML mapping of ``gym.make`` keywords) asks the same of other settings of
+the corridor: which make the loop's closure worth going back for.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+import yaml
 
 POLICIES = ("close_loop_first", "explore_first", "frontier")
 VARIANTS = ("emmi", "pose_entropy", "joint_entropy", "coverage")
@@ -27,8 +32,8 @@ def episode_steps(job) -> tuple[str, int, list[dict]]:
     import emmi_gym  # noqa: F401  (registers the ids in a worker process)
     from emmi_gym.policies import make_policy
 
-    policy_name, seed = job
-    env = gym.make("emmi_gym/LoopCorridor-v0")
+    policy_name, seed, env_kwargs = job
+    env = gym.make("emmi_gym/LoopCorridor-v0", **env_kwargs)
     policy = make_policy(policy_name)
     policy.reset(seed)
     env.reset(seed=seed)
@@ -59,8 +64,20 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=8)
     parser.add_argument("--time-costs", type=float, nargs="+", default=[EnvConfig.time_cost, 0.0005])
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--env-kwargs", type=yaml.safe_load, default={},
+                        help="gym.make keywords of LoopCorridor-v0, as a YAML mapping")
     args = parser.parse_args()
-    jobs = [(policy, seed) for seed in range(args.seeds) for policy in POLICIES]
+    if not isinstance(args.env_kwargs, dict):
+        parser.error(f"--env-kwargs: expected a YAML mapping of gym.make keywords, got {args.env_kwargs!r}")
+    import gymnasium as gym
+
+    import emmi_gym  # noqa: F401  (registers the ids)
+
+    try:  # checked once here, before any worker starts (option errors are ValueErrors naming the field)
+        gym.make("emmi_gym/LoopCorridor-v0", **args.env_kwargs).close()
+    except ValueError as error:
+        parser.error(f"--env-kwargs: {error}")
+    jobs = [(policy, seed, args.env_kwargs) for seed in range(args.seeds) for policy in POLICIES]
     episodes = {(p, s): steps for p, s, steps in run_in_processes(episode_steps, jobs, workers=args.workers,
                                                                   desc="episodes")}
     for policy in POLICIES:
