@@ -160,10 +160,11 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     set_torch_threads(args.torch_threads)
     if args.episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
-    config = load_run_config(args.model) if Path(args.model).is_file() else None
-    if config is not None:
-        print(f"evaluating on {config.env_id} ({config.eval_env_kwargs}), episodes seeded from {args.seed}")
-    rows = evaluate_model(args.model, args.episodes, args.seed, args.video)
+    if not Path(args.model).is_file():
+        raise FileNotFoundError(f"no model at {args.model}")
+    config = load_run_config(args.model)  # loaded once: checking it makes the env
+    print(f"evaluating on {config.env_id} ({config.eval_env_kwargs}), episodes seeded from {args.seed}")
+    rows = evaluate_model(args.model, args.episodes, args.seed, args.video, config=config)
     print(format_table(rows))
     print("\nmean over episodes:")
     print(format_table([summarise(rows)]))

@@ -100,12 +100,12 @@ class CostMap:
         if not np.isfinite(self.costs_at(row, col)):
             raise ValueError(f"no path to cell ({row}, {col}): it is unreachable")
         r0, c0 = self.corner
-        row, col = row - r0, col - c0
-        cells = [(row + r0, col + c0)]
+        row, col = row - r0, col - c0  # the walk runs in the window's indices
+        cells = [(row, col)]
         while (step := self.traceback[row, col]) >= 0:
             row, col = row - int(self.offsets[step, 0]), col - int(self.offsets[step, 1])
-            cells.append((row + r0, col + c0))
-        return cells[::-1]
+            cells.append((row, col))
+        return [(r + r0, c + c0) for r, c in reversed(cells)]
 
 
 def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, robot_radius: float,

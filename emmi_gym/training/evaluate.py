@@ -14,13 +14,15 @@ from .train import load_run_config, make_env
 EVALUATION_SEED = 200_000
 
 
-def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, video_dir=None) -> list[dict]:
+def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, video_dir=None,
+                   config=None) -> list[dict]:
     """Run ``episodes`` episodes of the model in the held-out evaluation's environment of its run's
-    configuration (the training env with ``eval.env_kwargs``)."""
+    configuration (the training env with ``eval.env_kwargs``; ``config``: that configuration, if the
+    caller has loaded it already)."""
     model_path = Path(model_path)
     if not model_path.is_file():
         raise FileNotFoundError(f"no model at {model_path}")
-    config = load_run_config(model_path)
+    config = config or load_run_config(model_path)
     model = algorithm_class(config.algorithm).load(model_path, device="cpu")
     env = make_env(config.env_id, config.eval_env_kwargs, render_mode="rgb_array" if video_dir else None)
     if video_dir is not None:
