@@ -240,10 +240,14 @@ class EmmiEnv(gym.Env):
         self._stale = False
         self._stale_map_channel = True
         self._expected = self.slam.expected_map()
-        known_free = certainty.observed_cells(self._expected) & (self._expected < 0.5)
-        self._coverage = float(np.count_nonzero(known_free & self._reachable)) / self._n_reachable
+        oracle = self._oracle.probabilities()
+        # coverage: the reachable free space the scans have swept, read on the oracle map (the same scans at
+        # the true poses), so that it measures exploration and not how well the estimated map lines up
+        # with the floor plan (a map turned by a few degrees would otherwise never reach the target)
+        swept_free = certainty.observed_cells(oracle) & (oracle < 0.5)
+        self._coverage = float(np.count_nonzero(swept_free & self._reachable)) / self._n_reachable
         self._map_accuracy = map_accuracy(self._expected, self.truth.grid)
-        self._oracle_accuracy, self._wall_consistency = oracle_scores(self._expected, self._oracle.probabilities(),
+        self._oracle_accuracy, self._wall_consistency = oracle_scores(self._expected, oracle,
                                                                       self.geometry.resolution)
         self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
                                               align=False)

@@ -5,7 +5,8 @@ Each variant (see :data:`~emmi_gym.env.config.REWARD_SCALES` for the scales and 
 - ``emmi``: scale * (EMMI after - EMMI before), the paper's certainty (eq. 11);
 - ``pose_entropy``: scale * (before - after): a fall of the pose entropy pays;
 - ``joint_entropy``: scale * (before - after) of the joint entropy (eq. 12);
-- ``coverage``: scale * the fraction of the reachable free space newly covered;
+- ``coverage``: scale * the fraction of the reachable free space newly swept by the scans (read on the
+  oracle map, see ``EmmiEnv._refresh``);
 - ``emmi_coverage``: scale * the change of EMMI x coverage: the mean information spread over
   the whole reachable free space (unexplored cells count as 0 bits) rather than over the
   observed cells only.
