@@ -108,7 +108,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
                         policy_kwargs={"net_arch": [16]}, rollout_buffer_class=SemiMarkovMaskableDictRolloutBuffer)
     model.learn(8, callback=[Durations(), SemiMarkovDiscounts(UNIT)])
     durations = np.array(durations, dtype=float)
-    assert durations.min() >= 1 and durations.max() > 10 * durations.min()  # macro-actions of very different lengths
+    assert durations.min() >= 1 and durations.max() > 5 * durations.min()  # macro-actions of very different lengths
     np.testing.assert_allclose(model.rollout_buffer.discounts[:, 0], GAMMA ** (durations / UNIT), rtol=1e-5)
 
 
