@@ -7,6 +7,8 @@ map accuracy against the floor plan (:func:`~emmi_gym.evaluation.map_accuracy`)
 measures rasterisation, blur and unseen corners as much as SLAM; against the oracle
 (:func:`~emmi_gym.evaluation.oracle_accuracy`) a perfect run scores exactly 1.0, and
 :func:`~emmi_gym.evaluation.wall_consistency` catches doubled walls at revisited places.
+The environments also read their coverage on it (what the scans swept), so that coverage
+measures exploration whatever the SLAM error.
 """
 
 from __future__ import annotations
