@@ -7,7 +7,7 @@ they know arrays, not worlds or filters.
 from __future__ import annotations
 
 import numpy as np
-from scipy import spatial
+from scipy import ndimage, spatial
 
 from .certainty import DEFAULT_OBSERVED_TOL, observed_cells
 from .grid import GridGeometry
@@ -43,6 +43,37 @@ def absolute_trajectory_error(estimated, truth, *, align: bool = True) -> float:
 def trajectory_alignment(estimated, truth) -> tuple[np.ndarray, np.ndarray]:
     """The rigid transform (R, t) taking the estimated trajectory's frame onto the truth's."""
     return align_se2(np.asarray(estimated, dtype=np.float64)[:, :2], np.asarray(truth, dtype=np.float64)[:, :2])
+
+
+def loop_closure_update(true_poses, scans, angles, max_range: float, geometry: GridGeometry, first_leg: int,
+                        search_from: int, share: float = 0.1) -> int | None:
+    """The update at which a loop closes: the first at or after ``search_from`` whose scan, at its true
+    pose, puts at least ``share`` of its echoes within one cell of an echo of the first ``first_leg``
+    updates (what the robot mapped as it set out). None if no scan does.
+
+    Where that happens depends on the sensor, not only on where the robot is: a 360-degree
+    laser sees the start area from the side and from behind, a 180-degree one only once it
+    lies ahead within range. ``scans[k]`` are the ranges of update k; a range of
+    ``max_range`` is no echo.
+    """
+    def echo_cells(k):
+        x, y, theta = true_poses[k][:3]
+        r = np.asarray(scans[k], dtype=np.float64)
+        hit = r < max_range
+        a = theta + np.asarray(angles)[hit]
+        row, col = geometry.cell_of(x + r[hit] * np.cos(a), y + r[hit] * np.sin(a))
+        inside = geometry.inside(row, col)
+        return row[inside], col[inside]
+
+    seen = np.zeros((geometry.rows, geometry.cols), dtype=bool)
+    for k in range(first_leg):
+        seen[echo_cells(k)] = True
+    seen = ndimage.binary_dilation(seen, structure=np.ones((3, 3), dtype=bool))
+    for k in range(search_from, len(scans)):
+        row, col = echo_cells(k)
+        if row.size and np.count_nonzero(seen[row, col]) >= share * row.size:
+            return k
+    return None
 
 
 def labels_in_map_frame(truth_grid: np.ndarray, geometry: GridGeometry, transform, unknown: int = -1) -> np.ndarray:

@@ -1,14 +1,19 @@
 """Accuracy of the RBPF round the loop_corridor loop, over seeds (the full version of tests/test_slam.py).
 
     python scripts/slam_accuracy.py [--seeds 20] [--particles 15] [--slam '{"logodds_free": -0.7}']
+        [--laser '{"preset": "sick_lms200", "max_range": 8.0}'] [--odometry poor]
+
+The sensors default to the simulator's own (a 360-degree 8 m laser, typical odometry);
+``--laser`` and ``--odometry`` take the environments' presets (``LoopCorridor-v0``
+registers the SICK LMS200 at 8 m and poor odometry).
 
 For each seed: record start -> decision -> start (74 m), run the filter, and report
 the best particle's ATE (unaligned: the filter starts at the true start pose, as
 dead reckoning does; and aligned), dead reckoning's ATE, the best map's accuracy
 against the ground truth (raw and registered by the path's alignment), and whether
-the loop closure shows in the metrics (EMMI higher 4 updates after re-entering the
-start area than just before; Neff < 0.8 M or a resampling within 3 before to 7 after;
-EMMI's largest rise of the second half of the loop, from the left corridor on, within 5
+the loop closure shows in the metrics (EMMI higher 4 updates after the closure - the first
+scan that sees again what the first leg saw, ``loop_closure_update`` - than just before;
+Neff < 0.8 M or a resampling within 3 before to 7 after; EMMI's largest rise of the second half of the loop, from the left corridor on, within 5
 updates of it; the first scans raise EMMI more than anything), and how many resamplings
 came before it.
 """
@@ -20,10 +25,16 @@ import json
 
 import numpy as np
 
-from emmi_gym.evaluation import absolute_trajectory_error, map_accuracy, trajectory_alignment
+from emmi_gym.evaluation import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.grid import GridGeometry
 from emmi_gym.slam import RBPF, RBPFConfig
-from emmi_gym.world import Simulator, drive_route, load_world, rasterise
+from emmi_gym.world import LaserConfig, OdometryNoise, Simulator, drive_route, load_world, rasterise
+from emmi_gym.world.presets import laser_config, odometry_config
+
+
+def _preset_or_json(text: str):
+    """A preset name as it is, JSON fields (``{...}``) parsed."""
+    return json.loads(text) if text.lstrip().startswith("{") else text
 
 
 def main() -> None:
@@ -31,10 +42,14 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--particles", type=int, default=15)
     parser.add_argument("--slam", default="{}", help="RBPFConfig overrides as JSON")
+    parser.add_argument("--laser", default=None, help="a laser preset name, or JSON fields with an optional preset")
+    parser.add_argument("--odometry", default=None, help="an odometry preset name, or JSON fields")
     args = parser.parse_args()
     overrides = json.loads(args.slam)
     world = load_world("loop_corridor")
-    sim = Simulator(world)
+    laser = laser_config(_preset_or_json(args.laser), "--laser") if args.laser else LaserConfig()
+    noise = odometry_config(_preset_or_json(args.odometry), "--odometry") if args.odometry else OdometryNoise()
+    sim = Simulator(world, laser=laser, odometry=noise)
     angles = sim.laser.config.angles
     geometry = GridGeometry.covering(*world.bounds, 0.1)
     truth_grid = rasterise(world, 0.1, geometry).grid
@@ -42,7 +57,7 @@ def main() -> None:
     rows = []
     for seed in range(args.seeds):
         rec = drive_route(sim, route, np.random.default_rng(seed))
-        slam = RBPF(RBPFConfig(**dict(overrides, particles=args.particles)), max_range=8.0, geometry=geometry)
+        slam = RBPF(RBPFConfig(**dict(overrides, particles=args.particles)), max_range=laser.max_range, geometry=geometry)
         slam.reset(rec.odometry_poses[0], np.random.default_rng(1000 + seed))
         metrics, steps = [], []
         for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans)):
@@ -53,7 +68,12 @@ def main() -> None:
         truth, best, odometry = rec.true_poses[steps], slam.paths[slam.best], rec.odometry_poses[steps]
         xy = truth[:, :2]
         left = np.flatnonzero((xy[:, 0] < 2.0) & (xy[:, 1] < 12.0))[0]
-        close = np.flatnonzero((np.arange(len(steps)) > left) & (xy[:, 0] > 3.0) & (xy[:, 1] < 2.0))[0]
+        # the loop closes when a scan sees again what the bottom corridor's first leg saw
+        first_leg = int(np.flatnonzero(xy[:, 1] > 2.0)[0])
+        close = loop_closure_update(truth, [rec.scans[k] for k in steps], angles, laser.max_range, geometry,
+                                    first_leg, left + 1)
+        if close is None:
+            raise SystemExit(f"seed {seed}: no scan after the left corridor saw the first leg again (the loop never closed)")
         emmi = [m.emmi for m in metrics]
         window = metrics[max(close - 3, 0):close + 8]
         rows.append((
@@ -66,10 +86,12 @@ def main() -> None:
             sum(m.resampled for m in metrics[:max(close - 3, 0)]),
             abs(left + 1 + int(np.argmax(np.diff(emmi[left:]))) - close) <= 5))
         print(f"seed {seed:2d}: ATE {rows[-1][0]:.3f} m (dead reckoning {rows[-1][1]:.2f} m), "
-              f"map accuracy {rows[-1][3]:.3f} (registered {rows[-1][4]:.3f})", flush=True)
+              f"map accuracy {rows[-1][3]:.3f} (registered {rows[-1][4]:.3f}); closure at update {close} of {len(steps)}, "
+              f"{int(rows[-1][7])} resamplings before it", flush=True)
     r = np.array(rows, dtype=float)
     n = args.seeds
-    print(f"\n{n} seeds, {args.particles} particles")
+    print(f"\n{n} seeds, {args.particles} particles; laser {np.degrees(laser.fov):.0f} deg, {laser.n_beams} beams, {laser.max_range:g} m; "
+          f"odometry alphas {noise.alphas}, drift {noise.heading_drift:g} rad/m")
     print(f"ATE of the best path: median {np.median(r[:, 0]):.3f} m, max {r[:, 0].max():.3f} m (aligned: median "
           f"{np.median(r[:, 2]):.3f} m); dead reckoning median {np.median(r[:, 1]):.2f} m; "
           f"worst ratio best / dead reckoning {(r[:, 0] / r[:, 1]).max():.2f}")

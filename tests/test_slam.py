@@ -6,7 +6,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from emmi_gym import certainty
-from emmi_gym.evaluation import absolute_trajectory_error, map_accuracy, trajectory_alignment
+from emmi_gym.evaluation import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.grid import GridGeometry
 from emmi_gym.slam import RBPF, CellCodes, ParticleMaps, RBPFConfig
 from emmi_gym.slam.resampling import survivors_in_place, systematic_resample
@@ -55,20 +55,24 @@ def test_accuracy_after_the_loop_closes(loop_runs):
     assert min(accuracies) >= 0.85, accuracies
 
 
-def _closing_update(rec, steps):
-    """The first update back in the bottom corridor (x > 3, y < 2) after the left corridor's lower half."""
+def _closing_update(rec, steps, angles, max_range, geometry):
+    """The first update after the left corridor's lower half whose scan sees again what the bottom
+    corridor's first leg saw."""
     xy = rec.true_poses[steps, :2]
     left = np.flatnonzero((xy[:, 0] < 2.0) & (xy[:, 1] < 12.0))[0]
-    back = np.flatnonzero((np.arange(len(steps)) > left) & (xy[:, 0] > 3.0) & (xy[:, 1] < 2.0))
-    assert back.size, "the robot never got back to the bottom corridor"
-    return int(back[0])
+    first_leg = int(np.flatnonzero(xy[:, 1] > 2.0)[0])
+    close = loop_closure_update(rec.true_poses[steps], [rec.scans[k] for k in steps], angles, max_range, geometry,
+                                first_leg, left + 1)
+    assert close is not None, "the robot never saw the start area again"
+    return close
 
 
 def test_loop_closure_shows_in_emmi_and_neff(loop_runs):
-    """Fig. 6: EMMI higher a few updates after re-entering the start area; Neff drops there."""
+    """Fig. 6: EMMI higher a few updates after the loop closes; Neff drops there."""
     emmi_up = neff_drop = 0
-    for _, rec, slam, rows, steps, _ in loop_runs:
-        close = _closing_update(rec, steps)
+    angles = LaserConfig().angles
+    for _, rec, slam, rows, steps, geometry in loop_runs:
+        close = _closing_update(rec, steps, angles, slam.max_range, geometry)
         emmi = np.array([r.emmi for r in rows])
         emmi_up += emmi[min(close + 4, len(rows) - 1)] > emmi[close - 1]
         window = rows[max(close - 3, 0):close + 8]
@@ -296,3 +300,28 @@ def test_ate_alignment_and_registered_map_accuracy():
     assert map_accuracy(probabilities, labels, geometry=geometry, transform=identity) == 1.0
     shifted = (np.eye(2), np.array([0.3, 0.0]))  # the truth seen 3 cells off: the wall is missed
     assert map_accuracy(probabilities, labels, geometry=geometry, transform=shifted) < 0.97
+
+
+def test_the_loop_closes_when_a_scan_sees_the_first_leg_again_not_when_the_robot_is_near():
+    """``loop_closure_update``: a forward-looking 180-degree laser closes the loop only once what it
+    mapped at the start lies ahead within range; standing near the start looking away does not."""
+    geometry = GridGeometry.covering(-10.0, -10.0, 10.0, 10.0, 0.1)
+    angles = np.linspace(-np.pi / 2, np.pi / 2, 181)
+
+    def scan_of_walls(pose):
+        """Ranges to the walls of a 10 m square room centred on the origin (no echo beyond 8 m)."""
+        x, y, theta = pose
+        a = theta + angles
+        with np.errstate(divide="ignore"):
+            tx = np.where(np.cos(a) > 0, (5.0 - x) / np.cos(a), (-5.0 - x) / np.cos(a))
+            ty = np.where(np.sin(a) > 0, (5.0 - y) / np.sin(a), (-5.0 - y) / np.sin(a))
+        return np.minimum(np.minimum(np.abs(tx), np.abs(ty)), 8.0)
+
+    poses = np.array([[2.0, 0.0, 0.0],        # first leg: facing the east wall
+                      [-2.0, 0.0, np.pi],     # the west wall
+                      [2.0, 0.5, np.pi],      # back near the start, looking away: not closed
+                      [0.0, 0.0, 0.0]])       # facing the east wall again: closed
+    scans = [scan_of_walls(p) for p in poses]
+    assert all(np.count_nonzero(r < 8.0) > 100 for r in scans)
+    assert loop_closure_update(poses, scans, angles, 8.0, geometry, first_leg=1, search_from=1) == 3
+    assert loop_closure_update(poses[:3], scans[:3], angles, 8.0, geometry, first_leg=1, search_from=1) is None
