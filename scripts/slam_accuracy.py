@@ -13,9 +13,9 @@ dead reckoning does; and aligned), dead reckoning's ATE, the best map's accuracy
 against the ground truth (raw and registered by the path's alignment), and whether
 the loop closure shows in the metrics (EMMI higher 4 updates after the closure - the first
 scan that sees again what the first leg saw, ``loop_closure_update`` - than just before;
-Neff < 0.8 M or a resampling within 3 before to 7 after; EMMI's largest rise of the second half of the loop, from the left corridor on, within 5
-updates of it; the first scans raise EMMI more than anything), and how many resamplings
-came before it.
+Neff < 0.8 M or a resampling within 3 before to 7 after; EMMI's largest rise of the second
+half of the loop, from the left corridor on, within 5 updates of it; the first scans raise
+EMMI more than anything), and how many resamplings came before it.
 """
 
 from __future__ import annotations
