@@ -2,10 +2,13 @@
 
 The full run (`emmi-gym ab --seeds 20`, in the README) is reproduced here on its first
 eight seeds (same settings, about 40 s on two cores): EMMI must rise after closing the
-loop and not after entering the new area, with a paired 95% interval above zero; the
-pose entropy must fall under A and not under B; the joint entropy must not prefer A.
-Whether the new area is mapped better when A came first is not asserted: the full run
-finds no clear difference on this world (+0.004 [-0.018, +0.026], docs/ab.md).
+loop and not after entering the new area (the full run: A - B +0.072 [+0.040, +0.104], A
+above B on 18 of 20; on eight seeds the paired interval is too wide to assert, since
+entering the new area raises EMMI too on some seeds, so A must be above B on at least 6
+of 8: fewer has probability 4% where the full run's 90% holds); the pose entropy must fall
+under A and not under B; the joint entropy must not prefer A. Whether the new area is
+mapped better when A came first is not asserted: the full run finds no clear difference
+on this world (-0.009 [-0.032, +0.015], docs/ab.md).
 """
 
 import csv
@@ -51,10 +54,10 @@ def test_every_run_reaches_both_goals_in_order(experiment):
 def test_emmi_rises_after_closing_the_loop_and_not_after_exploring(experiment):
     _, runs = experiment
     a, b = column(runs, "emmi_change", "A"), column(runs, "emmi_change", "B")
-    mean, low, _, n = mean_interval(a - b)
-    assert n == SEEDS and low > 0, (a, b)       # the paired 95% interval of A - B excludes zero
-    assert np.mean(a) > 0.02, a                  # the loop closure raises EMMI (full run: +0.020; here +0.031)
-    assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: -0.011)
+    assert len(a) == len(b) == SEEDS
+    assert np.sum(a > b) >= 6, (a, b)            # full run: 18 of 20
+    assert np.mean(a) > 0.02, a                  # the loop closure raises EMMI (full run: +0.079; here +0.052)
+    assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: +0.007; here +0.010)
 
 
 def test_pose_entropy_falls_under_a_and_not_under_b(experiment):

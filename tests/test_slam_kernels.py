@@ -201,9 +201,10 @@ def random_map(rng, h=40, w=40):
     return grid, hits
 
 
-def settings(radius=0.15, sigma=0.075, exponent=0.5, min_matched=0.0, trigger=0.0, block=2):
+def settings(radius=0.15, sigma=0.075, exponent=0.5, min_matched=0.0, trigger=0.0, block=2, revisit_exponent=0.8):
     config = RBPFConfig(resolution=RES, match_radius=radius, likelihood_sigma=sigma, likelihood_exponent=exponent,
-                        min_match_fraction=min_matched, coarse_trigger=trigger, match_max_iterations=30)
+                        min_match_fraction=min_matched, coarse_trigger=trigger, match_max_iterations=30,
+                        revisit_exponent=revisit_exponent)
     return MT.match_settings(config, 0.0, 0.0, RES, block)
 
 
@@ -289,7 +290,7 @@ def test_improved_proposal_matches_twin():
     angles = np.linspace(-np.pi, np.pi, 24, endpoint=False)
     new, inc, flags = np.empty((1, 3)), np.empty(1), np.zeros(1, dtype=np.bool_)
     MT.improved_proposal(0, 1, codes, all_hits, coarse, sample, mean, precision, lognorm, normals, ranges, angles,
-                         ranges, angles, 3.0, settings(), new, inc, flags)
+                         ranges, angles, ranges, False, 3.0, settings(), new, inc, flags)
     best, _, _ = twin_hill_climb(grid, hits, sample[0], ranges, angles, mean[0], precision[0], 0.05, 0.05, 3, 30)
     stencil = np.zeros((7, 3))
     for axis, step in enumerate((0.05, 0.05, 0.05)):
@@ -310,6 +311,24 @@ def test_improved_proposal_matches_twin():
     np.testing.assert_allclose(new[0], best + draw, atol=1e-9)
     eta = scores.max() + math.log(weights.sum()) + math.log(0.05**3)
     assert inc[0] == pytest.approx(0.5 * eta, rel=1e-9)
+
+    # beams that see a place again (revisit_gap): the same proposal; the normaliser of those beams
+    # only added with the extra exponent (revisit_exponent 0.8 - likelihood_exponent 0.5)
+    weighted = ranges.copy()
+    weighted[::3] = 3.0  # no echo: left out of the weight
+    new2, inc2 = np.empty((1, 3)), np.empty(1)
+    MT.improved_proposal(0, 1, codes, all_hits, coarse, sample, mean, precision, lognorm, normals, ranges, angles,
+                         ranges, angles, weighted, True, 3.0, settings(), new2, inc2, flags)
+    np.testing.assert_array_equal(new2, new)
+    subset = []
+    for off in stencil:
+        p = best + off
+        ll, _ = twin_loglik(grid, hits, *p, weighted, angles, 3.0, 0.15, 0.075)
+        d = p - mean[0]
+        subset.append(ll - 0.5 * d @ precision[0] @ d + lognorm[0])
+    subset = np.array(subset)
+    eta_subset = subset.max() + math.log(np.exp(subset - subset.max()).sum()) + math.log(0.05**3)
+    assert inc2[0] == pytest.approx(0.5 * eta + 0.3 * eta_subset, rel=1e-9)
 
 
 @given(st.integers(0, 2**31), st.integers(1, 40))

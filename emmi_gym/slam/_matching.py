@@ -45,6 +45,7 @@ MatchSettings = namedtuple("MatchSettings", [
     "block",             # cells per coarse block side
     "coarse_linear_step", "coarse_angular_step", "coarse_trigger",
     "exponent",          # tempering of the weights
+    "revisit_extra",     # revisit_exponent - exponent: the extra tempering of beams that see a place again
     "min_matched",       # fraction of the likelihood beams that must match
 ])
 
@@ -58,7 +59,8 @@ def match_settings(config, origin_x: float, origin_y: float, resolution: float, 
         resolution * resolution / (2.0 * config.likelihood_sigma ** 2),
         config.match_linear_step, config.match_angular_step, config.match_refinements,
         config.match_max_iterations, int(block), block * resolution, config.coarse_angular_step,
-        config.coarse_trigger, config.likelihood_exponent, config.min_match_fraction)
+        config.coarse_trigger, config.likelihood_exponent, config.revisit_exponent - config.likelihood_exponent,
+        config.min_match_fraction)
 
 
 @nb.njit(cache=True)
@@ -315,8 +317,8 @@ def match(grid, hits, coarse, start, climb_ranges, climb_angles, max_range, s, m
 
 @nb.njit(cache=True, nogil=True)
 def improved_proposal(start, stop, codes, hits, coarse, motion_samples, motion_means, motion_precisions,
-                      motion_lognorms, normals, climb_ranges, climb_angles, ranges, angles, max_range, s,
-                      new_poses, log_increments, matched_flags):
+                      motion_lognorms, normals, climb_ranges, climb_angles, ranges, angles, weight_ranges,
+                      separate_weights, max_range, s, new_poses, log_increments, matched_flags):
     """The improved proposal of GMapping (Grisetti et al. 2007, eqs. 18-20), for every particle.
 
     From each particle's motion sample x' (odometry noise applied), :func:`match` finds the
@@ -327,7 +329,11 @@ def improved_proposal(start, stop, codes, hits, coarse, motion_samples, motion_m
     theta, fit a Gaussian weighted by exp(L), draw the new pose from it with ``normals``,
     and add ``exponent * log(eta)`` to the log-weight, eta = sum exp(L) * step volume
     (eq. 20). Otherwise keep x' and add ``exponent * loglik(x')``: the same integral
-    estimated by the one sample drawn from the motion model.
+    estimated by the one sample drawn from the motion model. With ``separate_weights``,
+    ``weight_ranges`` are the beams that see a place again (the others set to ``max_range``,
+    i.e. no echo; see :mod:`emmi_gym.slam.revisits`): the same normaliser of those beams
+    only, on the same seven poses (or at x'), is added times ``revisit_extra``, so that they
+    count with ``revisit_exponent`` in all. The proposal uses every beam either way.
 
     Proposes particles ``start`` to ``stop`` - 1: the particles are independent, so chunks of
     them run at once on threads (:mod:`emmi_gym.threads`; the GIL is released), with the
@@ -346,18 +352,19 @@ def improved_proposal(start, stop, codes, hits, coarse, motion_samples, motion_m
     min_matched = max(1, int(math.ceil(s.min_matched * n_likelihood)))
     for i in range(start, stop):
         _propose(i, codes[i], hits[i], coarse[i], motion_samples, motion_means, motion_precisions, motion_lognorms,
-                 normals, climb_ranges, climb_angles, ranges, angles, max_range, s, stencil, min_matched,
-                 new_poses, log_increments, matched_flags)
+                 normals, climb_ranges, climb_angles, ranges, angles, weight_ranges, separate_weights, max_range, s,
+                 stencil, min_matched, new_poses, log_increments, matched_flags)
 
 
 @nb.njit(cache=True, nogil=True)
 def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_precisions, motion_lognorms,
-             normals, climb_ranges, climb_angles, ranges, angles, max_range, s, stencil, min_matched,
-             new_poses, log_increments, matched_flags):
+             normals, climb_ranges, climb_angles, ranges, angles, weight_ranges, separate_weights, max_range, s,
+             stencil, min_matched, new_poses, log_increments, matched_flags):
     """Particle ``i`` of :func:`improved_proposal`: its mode, its Gaussian, its draw and its weight."""
     astep = s.angular_step
     log_volume = math.log(s.linear_step * s.linear_step * astep)
     offsets = np.empty((3, ranges.size, 4))  # beam offsets at headings x* - step, x*, x* + step
+    weight_offsets = np.empty((3, ranges.size if separate_weights else 0, 4))
     scores = np.empty(7)
     pose = np.empty(3)
     best_pose, _ = match(grid, cell_hits, coarse, motion_samples[i], climb_ranges, climb_angles,
@@ -373,6 +380,10 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
         ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s, -np.inf)
         new_poses[i] = motion_samples[i]
         log_increments[i] = s.exponent * ll
+        if separate_weights:
+            n = beam_offsets(motion_samples[i, 2], weight_ranges, angles, max_range, s.resolution, offsets[0])
+            ll, _ = scan_loglik(grid, cell_hits, gx, gy, offsets[0], n, s, -np.inf)
+            log_increments[i] += s.revisit_extra * ll
         return
     beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
     beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
@@ -407,3 +418,32 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
     new_poses[i, 1] = best_pose[1] + draw[1]
     new_poses[i, 2] = (best_pose[2] + draw[2] + math.pi) % (2.0 * math.pi) - math.pi
     log_increments[i] = s.exponent * (top + math.log(total) + log_volume)
+    if separate_weights:
+        top, total = _weight_scores(grid, cell_hits, best_pose, weight_ranges, angles, max_range, s, stencil,
+                                    motion_means[i], motion_precisions[i], motion_lognorms[i], weight_offsets,
+                                    scores, pose)
+        log_increments[i] += s.revisit_extra * (top + math.log(total) + log_volume)
+
+
+@nb.njit(cache=True)
+def _weight_scores(grid, cell_hits, best_pose, ranges, angles, max_range, s, stencil, mean, precision, lognorm,
+                   offsets, scores, pose):
+    """The proposal's normaliser on the seven poses round the mode, for the beams ``ranges`` only:
+    (the largest log-score, the sum of exp(score - largest))."""
+    astep = s.angular_step
+    n = beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
+    beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, offsets[1])
+    beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
+    top = -np.inf
+    for k in range(7):
+        for axis in range(3):
+            pose[axis] = best_pose[axis] + stencil[k, axis]
+        t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
+        value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, mean, precision, -np.inf)
+        scores[k] = value + lognorm
+        if scores[k] > top:
+            top = scores[k]
+    total = 0.0
+    for k in range(7):
+        total += math.exp(scores[k] - top)
+    return top, total

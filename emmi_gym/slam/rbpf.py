@@ -36,6 +36,7 @@ from . import _matching
 from .config import RBPFConfig
 from .occupancy import ParticleMaps
 from .resampling import survivors_in_place, systematic_resample
+from .revisits import RevisitGrid
 from .sensor_model import CellCodes
 
 #: Floors on the motion model's pose deviations (m, m, rad), so that a standing update stays proper.
@@ -148,6 +149,8 @@ class RBPF:
             pose[0] - self.max_range - 2, pose[1] - self.max_range - 2,
             pose[0] + self.max_range + 2, pose[1] + self.max_range + 2, self.config.resolution)
         self.maps = ParticleMaps(geometry, m, self.cell_codes, self.config.coarse_block())
+        self.revisits = (RevisitGrid(geometry, self.maps.block, self.config.revisit_reach)
+                         if self.config.revisit_gap is not None else None)
         self.poses = np.tile(pose, (m, 1))
         self.log_weights = np.zeros(m)
         self.accumulated_log_weights = np.zeros(m)
@@ -190,6 +193,7 @@ class RBPF:
         self._ensure_extent()
         self._insert(ranges, angles)
         self._append_path()
+        self._stamp(ranges, angles)
         phases = dict.fromkeys(_PHASES, 0.0)
         phases["insertion"] = time.perf_counter() - t0
         return self._measure(timestamp, resampled=False, matched=0.0, phases=phases, cpu0=cpu0)
@@ -210,6 +214,7 @@ class RBPF:
         climb_ranges, climb_angles = np.ascontiguousarray(matching_ranges[climb]), np.ascontiguousarray(angles[climb])
         beam_ranges = np.ascontiguousarray(matching_ranges[likelihood])
         beam_angles = np.ascontiguousarray(angles[likelihood])
+        weight_ranges = self._weight_ranges(compose_local(self.poses[self.best], motion), beam_ranges, beam_angles)
         new_poses = np.empty_like(self.poses)
         increments = np.empty(m)
         matched = np.zeros(m, dtype=np.bool_)
@@ -217,7 +222,8 @@ class RBPF:
         settings = _matching.match_settings(cfg, g.origin_x, g.origin_y, g.resolution, self.maps.block)
         run_in_chunks(_matching.improved_proposal, m, self.maps.codes, self.maps.hits, self.maps.coarse, samples,
                       means, precisions, lognorms, proposal_normals, climb_ranges, climb_angles, beam_ranges,
-                      beam_angles, self.max_range, settings, new_poses, increments, matched)
+                      beam_angles, weight_ranges, self.revisits is not None, self.max_range, settings, new_poses,
+                      increments, matched)
         self.poses = new_poses
         t1 = time.perf_counter()
         phases["scan_matching"] = t1 - t0
@@ -238,12 +244,29 @@ class RBPF:
         self._ensure_extent()
         self._insert(ranges, angles)
         self._append_path()
+        self._stamp(ranges, angles)
         phases["insertion"] = time.perf_counter() - t3
         return self._measure(timestamp, resampled, float(matched.mean()), phases, cpu0)
 
     def _insert(self, ranges, angles) -> None:
         self.maps.insert(self.poses, ranges, angles, self.max_range, self.config.max_range_free,
                          self.config.insertion_range)
+
+    def _weight_ranges(self, predicted_best, ranges: np.ndarray, angles: np.ndarray) -> np.ndarray:
+        """The likelihood beams the weights count: with ``revisit_gap``, those that from the best particle's
+        predicted pose end where the scans last reached at least that many updates ago (the others read
+        as no echo); otherwise all of them."""
+        if self.revisits is None:
+            return ranges
+        seen_again = self.revisits.revisited(predicted_best, ranges, angles, self.max_range, self._n_path + 1,
+                                             self.config.revisit_gap)
+        return np.where(seen_again, ranges, self.max_range)
+
+    def _stamp(self, ranges, angles) -> None:
+        """Record the places this update's scan reached (at the best particle's pose), for ``revisit_gap``."""
+        if self.revisits is not None:
+            self.revisits.stamp(self.poses[self.best], ranges, angles, self.max_range, self._n_path,
+                                self.config.revisit_gap)
 
     def _matching_ranges(self, ranges: np.ndarray) -> np.ndarray:
         """The ranges the matcher sees: beyond ``matching_range`` a beam reads as no echo."""
@@ -291,7 +314,8 @@ class RBPF:
             return
         reach = self.max_range + 1.0
         lo, hi = self.poses[:, :2].min(axis=0) - reach, self.poses[:, :2].max(axis=0) + reach
-        self.maps.grow_to_contain(lo[0], lo[1], hi[0], hi[1], self.grow_chunk)
+        if self.maps.grow_to_contain(lo[0], lo[1], hi[0], hi[1], self.grow_chunk) and self.revisits is not None:
+            self.revisits.follow(self.maps.geometry)
 
     def _measure(self, timestamp: float, resampled: bool, matched: float, phases: dict,
                  cpu0: float) -> UpdateMetrics:

@@ -1,0 +1,84 @@
+"""When the scans last reached each place: which beams of a new scan see a place again after a gap.
+
+A particle's map of the last few updates was built from that particle's own poses, so a new
+scan fits it about equally well whatever the particle's path; the differences in that fit
+are the map's discretisation noise, correlated from one update to the next (measured on
+``loop_corridor``: lag-1 correlation 0.6-0.8 of the per-particle weight increments), and
+weights computed on every beam re-count them update after update until the particle set
+resamples along a plain corridor. Beams that land where the scans last reached many updates
+ago test each particle's whole path since: that is the evidence a loop closure brings.
+With ``RBPFConfig.revisit_gap`` the weights count only those beams (the proposal, the scan
+match, still uses every beam).
+
+One grid shared by the particles, in blocks of the maps' coarse stage, stamped with the
+update at which a scan's end points (taken at the best particle's pose) last fell in each
+block or its neighbours within ``reach`` blocks; the same beams are tested for every
+particle, at the best particle's predicted pose, so the weights compare like with like.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..grid import GridGeometry
+
+
+class RevisitGrid:
+    """The update at which the scans last reached each block (0: never)."""
+
+    def __init__(self, geometry: GridGeometry, block: int, reach: float):
+        self.block = int(block)
+        self.side = geometry.resolution * self.block
+        self.reach = max(0, int(math.ceil(reach / self.side)))
+        self.origin = (geometry.origin_x, geometry.origin_y)
+        self.last = np.zeros((-(-geometry.rows // self.block), -(-geometry.cols // self.block)), dtype=np.int32)
+        self.again = np.zeros(self.last.shape, dtype=bool)
+
+    def follow(self, geometry: GridGeometry) -> None:
+        """Pad to the maps' grown geometry (they grow by whole blocks)."""
+        left = int(round((self.origin[0] - geometry.origin_x) / self.side))
+        down = int(round((self.origin[1] - geometry.origin_y) / self.side))
+        rows, cols = -(-geometry.rows // self.block), -(-geometry.cols // self.block)
+        if (left, down, rows, cols) == (0, 0) + self.last.shape:
+            return
+        window = (slice(down, down + self.last.shape[0]), slice(left, left + self.last.shape[1]))
+        last, again = np.zeros((rows, cols), dtype=np.int32), np.zeros((rows, cols), dtype=bool)
+        last[window], again[window] = self.last, self.again
+        self.last, self.again, self.origin = last, again, (geometry.origin_x, geometry.origin_y)
+
+    def _blocks(self, pose, ranges, angles, max_range) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rows, cols) of the blocks of the beams' end points, and which beams have an echo inside the grid."""
+        echo = (ranges > 0.0) & (ranges < max_range)
+        a = pose[2] + angles
+        col = np.floor((pose[0] + ranges * np.cos(a) - self.origin[0]) / self.side).astype(np.int64)
+        row = np.floor((pose[1] + ranges * np.sin(a) - self.origin[1]) / self.side).astype(np.int64)
+        h, w = self.last.shape
+        return row, col, echo & (row >= 0) & (row < h) & (col >= 0) & (col < w)
+
+    def stamp(self, pose, ranges, angles, max_range: float, update: int, gap: int) -> None:
+        """Record that the scan taken at ``pose`` reached its end points' blocks (and ``reach`` around) at
+        ``update``; a block reached again ``gap`` or more updates after it was last reached is revisited
+        from then on."""
+        row, col, inside = self._blocks(pose, ranges, angles, max_range)
+        if not inside.any():
+            return
+        h, w = self.last.shape
+        around = np.arange(-self.reach, self.reach + 1)
+        rr = (row[inside][:, None, None] + around[None, :, None]).repeat(around.size, axis=2).ravel()
+        cc = (col[inside][:, None, None] + around[None, None, :]).repeat(around.size, axis=1).ravel()
+        ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+        blocks = np.unique(rr[ok] * w + cc[ok])
+        last, again = self.last.reshape(-1), self.again.reshape(-1)
+        again[blocks] |= (last[blocks] > 0) & (update - last[blocks] >= gap)
+        last[blocks] = update
+
+    def revisited(self, pose, ranges, angles, max_range: float, update: int, gap: int) -> np.ndarray:
+        """Which beams, from ``pose``, end in a block seen again after a gap, or that would be now."""
+        row, col, inside = self._blocks(pose, ranges, angles, max_range)
+        seen = np.zeros(ranges.shape, dtype=np.int64)
+        seen[inside] = self.last[row[inside], col[inside]]
+        again = np.zeros(ranges.shape, dtype=bool)
+        again[inside] = self.again[row[inside], col[inside]]
+        return inside & (again | ((seen > 0) & (update - seen >= gap)))
