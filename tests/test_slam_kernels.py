@@ -295,13 +295,17 @@ def test_improved_proposal_matches_twin():
     stencil = np.zeros((7, 3))
     for axis, step in enumerate((0.05, 0.05, 0.05)):
         stencil[1 + 2 * axis, axis], stencil[2 + 2 * axis, axis] = -step, step
-    scores = []
-    for off in stencil:
-        p = best + off
-        ll, _ = twin_loglik(grid, hits, *p, ranges, angles, 3.0, 0.15, 0.075)
-        d = p - mean[0]
-        scores.append(ll - 0.5 * d @ precision[0] @ d + lognorm[0])
-    scores = np.array(scores)
+    def stencil_scores(beams):
+        """log target + log normaliser of the motion prior at each stencil pose, on ``beams``."""
+        scores = []
+        for off in stencil:
+            p = best + off
+            ll, _ = twin_loglik(grid, hits, *p, beams, angles, 3.0, 0.15, 0.075)
+            d = p - mean[0]
+            scores.append(ll - 0.5 * d @ precision[0] @ d + lognorm[0])
+        return np.array(scores)
+
+    scores = stencil_scores(ranges)
     weights = np.exp(scores - scores.max())
     mu = weights @ stencil / weights.sum()
     cov = (weights[:, None, None] * np.einsum("ki,kj->kij", stencil - mu, stencil - mu)).sum(0) / weights.sum()
@@ -320,13 +324,7 @@ def test_improved_proposal_matches_twin():
     MT.improved_proposal(0, 1, codes, all_hits, coarse, sample, mean, precision, lognorm, normals, ranges, angles,
                          ranges, angles, weighted, True, 3.0, settings(), new2, inc2, flags)
     np.testing.assert_array_equal(new2, new)
-    subset = []
-    for off in stencil:
-        p = best + off
-        ll, _ = twin_loglik(grid, hits, *p, weighted, angles, 3.0, 0.15, 0.075)
-        d = p - mean[0]
-        subset.append(ll - 0.5 * d @ precision[0] @ d + lognorm[0])
-    subset = np.array(subset)
+    subset = stencil_scores(weighted)
     eta_subset = subset.max() + math.log(np.exp(subset - subset.max()).sum()) + math.log(0.05**3)
     assert inc2[0] == pytest.approx(0.5 * eta + 0.3 * eta_subset, rel=1e-9)
 
