@@ -387,22 +387,11 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
         return
     beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
     beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
-    scores[0] = centre + motion_lognorms[i]
-    top = scores[0]
-    for k in range(1, 7):
-        for axis in range(3):
-            pose[axis] = best_pose[axis] + stencil[k, axis]
-        t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
-        value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, motion_means[i], motion_precisions[i],
-                              -np.inf)
-        scores[k] = value + motion_lognorms[i]
-        if scores[k] > top:
-            top = scores[k]
-    total = 0.0
+    top, total = _stencil_scores(grid, cell_hits, best_pose, centre, offsets, n, s, stencil, motion_means[i],
+                                 motion_precisions[i], motion_lognorms[i], scores, pose)
     mean = np.zeros(3)
     for k in range(7):
         scores[k] = math.exp(scores[k] - top)
-        total += scores[k]
         mean += scores[k] * stencil[k]
     mean /= total
     cov = np.zeros((3, 3))
@@ -419,23 +408,25 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
     new_poses[i, 2] = (best_pose[2] + draw[2] + math.pi) % (2.0 * math.pi) - math.pi
     log_increments[i] = s.exponent * (top + math.log(total) + log_volume)
     if separate_weights:
-        top, total = _weight_scores(grid, cell_hits, best_pose, weight_ranges, angles, max_range, s, stencil,
-                                    motion_means[i], motion_precisions[i], motion_lognorms[i], weight_offsets,
-                                    scores, pose)
+        n = beam_offsets(best_pose[2], weight_ranges, angles, max_range, s.resolution, weight_offsets[1])
+        beam_offsets(best_pose[2] - astep, weight_ranges, angles, max_range, s.resolution, weight_offsets[0])
+        beam_offsets(best_pose[2] + astep, weight_ranges, angles, max_range, s.resolution, weight_offsets[2])
+        centre, _ = log_target(grid, cell_hits, best_pose, weight_offsets[1], n, s, motion_means[i],
+                               motion_precisions[i], -np.inf)
+        top, total = _stencil_scores(grid, cell_hits, best_pose, centre, weight_offsets, n, s, stencil,
+                                     motion_means[i], motion_precisions[i], motion_lognorms[i], scores, pose)
         log_increments[i] += s.revisit_extra * (top + math.log(total) + log_volume)
 
 
 @nb.njit(cache=True)
-def _weight_scores(grid, cell_hits, best_pose, ranges, angles, max_range, s, stencil, mean, precision, lognorm,
-                   offsets, scores, pose):
-    """The proposal's normaliser on the seven poses round the mode, for the beams ``ranges`` only:
-    (the largest log-score, the sum of exp(score - largest))."""
-    astep = s.angular_step
-    n = beam_offsets(best_pose[2] - astep, ranges, angles, max_range, s.resolution, offsets[0])
-    beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, offsets[1])
-    beam_offsets(best_pose[2] + astep, ranges, angles, max_range, s.resolution, offsets[2])
-    top = -np.inf
-    for k in range(7):
+def _stencil_scores(grid, cell_hits, best_pose, centre, offsets, n, s, stencil, mean, precision, lognorm, scores,
+                    pose):
+    """The proposal's log-density plus the motion prior's log-normaliser on the seven poses round the mode,
+    into ``scores`` (``centre``: the log-density at the mode; ``offsets``: the beams at headings mode - step,
+    mode, mode + step). Returns (the largest score, the sum of exp(score - largest))."""
+    scores[0] = centre + lognorm
+    top = scores[0]
+    for k in range(1, 7):
         for axis in range(3):
             pose[axis] = best_pose[axis] + stencil[k, axis]
         t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
