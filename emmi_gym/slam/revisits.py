@@ -1,19 +1,21 @@
-"""When the scans last reached each place: which beams of a new scan see a place again after a gap.
+"""Places seen again: which beams of a new scan end where the scans came back to after a gap.
 
 A particle's map of the last few updates was built from that particle's own poses, so a new
 scan fits it about equally well whatever the particle's path; the differences in that fit
 are the map's discretisation noise, correlated from one update to the next (measured on
 ``loop_corridor``: lag-1 correlation 0.6-0.8 of the per-particle weight increments), and
 weights computed on every beam re-count them update after update until the particle set
-resamples along a plain corridor. Beams that land where the scans last reached many updates
-ago test each particle's whole path since: that is the evidence a loop closure brings.
-With ``RBPFConfig.revisit_gap`` the weights count only those beams (the proposal, the scan
-match, still uses every beam).
+resamples along a plain corridor. Beams that end where the scans came back to after many
+updates test each particle's whole path since: that is the evidence a loop closure brings.
+``RBPFConfig.revisit_exponent`` weighs those beams, ``likelihood_exponent`` the rest (the
+proposal, the scan match, uses every beam).
 
-One grid shared by the particles, in blocks of the maps' coarse stage, stamped with the
-update at which a scan's end points (taken at the best particle's pose) last fell in each
-block or its neighbours within ``reach`` blocks; the same beams are tested for every
-particle, at the best particle's predicted pose, so the weights compare like with like.
+One grid shared by the particles, in blocks of the maps' coarse stage: the update at which
+a scan's end points (taken at the best particle's pose) last fell in each block or within
+``reach`` blocks of it, and whether the block was ever reached again ``gap`` or more updates
+after it last had been (seen again: it stays so, since the map there still holds what the
+earlier visit saw). The same beams are tested for every particle, from the best particle's
+predicted pose, so the weights compare like with like.
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ from ..grid import GridGeometry
 
 
 class RevisitGrid:
-    """The update at which the scans last reached each block (0: never)."""
+    """Per block: the update at which the scans last reached it (``last``, 0: never) and whether it was
+    ever reached again after a gap (``again``)."""
 
     def __init__(self, geometry: GridGeometry, block: int, reach: float):
         self.block = int(block)
@@ -75,7 +78,8 @@ class RevisitGrid:
         last[blocks] = update
 
     def revisited(self, pose, ranges, angles, max_range: float, update: int, gap: int) -> np.ndarray:
-        """Which beams, from ``pose``, end in a block seen again after a gap, or that would be now."""
+        """Which beams, from ``pose``, end in a block seen again after a gap, or that this scan, as update
+        ``update``, would see again."""
         row, col, inside = self._blocks(pose, ranges, angles, max_range)
         seen = np.zeros(ranges.shape, dtype=np.int64)
         seen[inside] = self.last[row[inside], col[inside]]
