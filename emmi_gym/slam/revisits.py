@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
 from ..grid import GridGeometry
@@ -65,17 +66,7 @@ class RevisitGrid:
         ``update``; a block reached again ``gap`` or more updates after it was last reached is revisited
         from then on."""
         row, col, inside = self._blocks(pose, ranges, angles, max_range)
-        if not inside.any():
-            return
-        h, w = self.last.shape
-        around = np.arange(-self.reach, self.reach + 1)
-        rr = (row[inside][:, None, None] + around[None, :, None]).repeat(around.size, axis=2).ravel()
-        cc = (col[inside][:, None, None] + around[None, None, :]).repeat(around.size, axis=1).ravel()
-        ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
-        blocks = np.unique(rr[ok] * w + cc[ok])
-        last, again = self.last.reshape(-1), self.again.reshape(-1)
-        again[blocks] |= (last[blocks] > 0) & (update - last[blocks] >= gap)
-        last[blocks] = update
+        _stamp_blocks(self.last, self.again, row[inside], col[inside], self.reach, update, gap)
 
     def revisited(self, pose, ranges, angles, max_range: float, update: int, gap: int) -> np.ndarray:
         """Which beams, from ``pose``, end in a block seen again after a gap, or that this scan, as update
@@ -86,3 +77,17 @@ class RevisitGrid:
         again = np.zeros(ranges.shape, dtype=bool)
         again[inside] = self.again[row[inside], col[inside]]
         return inside & (again | ((seen > 0) & (update - seen >= gap)))
+
+
+@nb.njit(cache=True)
+def _stamp_blocks(last, again, rows, cols, reach, update, gap):
+    """Stamp ``update`` on the blocks within ``reach`` of each (row, col); a block last stamped ``gap`` or
+    more updates before is seen again (a block met twice in one call is stamped already the second time,
+    so the order does not matter)."""
+    h, w = last.shape
+    for k in range(rows.size):
+        for r in range(max(rows[k] - reach, 0), min(rows[k] + reach + 1, h)):
+            for c in range(max(cols[k] - reach, 0), min(cols[k] + reach + 1, w)):
+                if last[r, c] > 0 and update - last[r, c] >= gap:
+                    again[r, c] = True
+                last[r, c] = update
