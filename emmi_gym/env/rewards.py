@@ -14,14 +14,14 @@ Each variant (see :data:`~emmi_gym.env.config.REWARD_SCALES` for the scales and 
 EMMI is a *mean* over the observed cells: re-scanning the same cells raises it as each
 cell's log-odds approach the clamp. ``scripts/reward_farming.py`` measures what each variant
 pays (time and collision costs included, 3 plans of the hard configuration, 300 steps in
-velocity mode): standing still -0.60 under every variant; spinning in place +6.06 under
-``emmi`` and +2.96 under ``joint_entropy`` (farmed: per unit of time 50 and 0.9 times what
-the frontier policy earns in 40 decisions, +0.65 and +22.6 over ~2000 steps), -1.19 under
-``pose_entropy``, -0.09 under ``coverage`` and +0.03 under ``emmi_coverage``. Weighted by
+velocity mode): standing still -0.60 under every variant; spinning in place +6.14 under
+``emmi`` and +2.96 under ``joint_entropy`` (farmed: per unit of time 20 and 0.8 times what
+the frontier policy earns in 40 decisions, +1.92 and +23.7 over ~1900 steps), -1.16 under
+``pose_entropy``, -0.09 under ``coverage`` and +0.04 under ``emmi_coverage``. Weighted by
 coverage, a rise of EMMI pays in proportion to how much of the building the map holds:
 re-scanning a corner is worth little, closing a loop when the map is large much; spinning
-and the frontier policy both earn about the time cost back under ``emmi_coverage`` (+0.01
-and +0.00 per 100 simulator steps net of it; under ``emmi``: +2.02 and +0.04).
+earns +0.01 per 100 simulator steps under ``emmi_coverage``, the frontier policy +0.05
+(under ``emmi``: +2.05 and +0.10).
 """
 
 from __future__ import annotations
