@@ -364,7 +364,6 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
     astep = s.angular_step
     log_volume = math.log(s.linear_step * s.linear_step * astep)
     offsets = np.empty((3, ranges.size, 4))  # beam offsets at headings x* - step, x*, x* + step
-    weight_offsets = np.empty((3, ranges.size if separate_weights else 0, 4))
     scores = np.empty(7)
     pose = np.empty(3)
     best_pose, _ = match(grid, cell_hits, coarse, motion_samples[i], climb_ranges, climb_angles,
@@ -407,13 +406,13 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
     new_poses[i, 1] = best_pose[1] + draw[1]
     new_poses[i, 2] = (best_pose[2] + draw[2] + math.pi) % (2.0 * math.pi) - math.pi
     log_increments[i] = s.exponent * (top + math.log(total) + log_volume)
-    if separate_weights:
-        n = beam_offsets(best_pose[2], weight_ranges, angles, max_range, s.resolution, weight_offsets[1])
-        beam_offsets(best_pose[2] - astep, weight_ranges, angles, max_range, s.resolution, weight_offsets[0])
-        beam_offsets(best_pose[2] + astep, weight_ranges, angles, max_range, s.resolution, weight_offsets[2])
-        centre, _ = log_target(grid, cell_hits, best_pose, weight_offsets[1], n, s, motion_means[i],
+    if separate_weights:  # the proposal is drawn: its offsets take those of the weighted beams
+        n = beam_offsets(best_pose[2], weight_ranges, angles, max_range, s.resolution, offsets[1])
+        beam_offsets(best_pose[2] - astep, weight_ranges, angles, max_range, s.resolution, offsets[0])
+        beam_offsets(best_pose[2] + astep, weight_ranges, angles, max_range, s.resolution, offsets[2])
+        centre, _ = log_target(grid, cell_hits, best_pose, offsets[1], n, s, motion_means[i],
                                motion_precisions[i], -np.inf)
-        top, total = _stencil_scores(grid, cell_hits, best_pose, centre, weight_offsets, n, s, stencil,
+        top, total = _stencil_scores(grid, cell_hits, best_pose, centre, offsets, n, s, stencil,
                                      motion_means[i], motion_precisions[i], motion_lognorms[i], scores, pose)
         log_increments[i] += s.revisit_extra * (top + math.log(total) + log_volume)
 
