@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shutil
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -39,10 +40,10 @@ LOGS = ("intel", "aces", "csail", "freiburg-079")
 
 
 def run_one(path: Path, config: RBPFConfig, max_range: float, out: Path, filter_seed: int,
-            threads: int | None) -> dict:
+            threads: int | None, flaser_fov: float) -> dict:
     if threads is not None:
         set_kernel_threads(threads)
-    log = read_log(path)
+    log = read_log(path, flaser_fov=math.radians(flaser_fov))
     t0 = time.perf_counter()
     result = replay(log, config, max_range=max_range, seed=filter_seed)
     wall = time.perf_counter() - t0
@@ -79,6 +80,8 @@ def main() -> None:
     parser.add_argument("--out", default="slam_benchmark")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--threads", type=int, default=None, help="kernel threads per run (default: one per core)")
+    parser.add_argument("--flaser-fov", type=float, default=180.0,
+                        help="field of view of the FLASER lines, degrees (the first beam at -fov/2, the last at +fov/2)")
     args = parser.parse_args()
     options = {"particles": args.particles, "resolution": args.resolution, "linear_update": 0.0,
                "angular_update": 0.0, **json.loads(args.slam)}  # every keyframe an update
@@ -94,7 +97,8 @@ def main() -> None:
             for f in args.filter_seeds]
     with ProcessPoolExecutor(args.jobs) as pool:
         results = list(pool.map(run_one, [p for p, _ in runs], [config] * len(runs), [args.max_range] * len(runs),
-                                [out] * len(runs), [f for _, f in runs], [args.threads] * len(runs)))
+                                [out] * len(runs), [f for _, f in runs], [args.threads] * len(runs),
+                                [args.flaser_fov] * len(runs)))
     print(f"{args.particles} particles, {args.resolution} m cells, every keyframe an update, max range "
           f"{args.max_range} m, preset {args.preset}, overrides {args.slam}")
     print("| log | updates | dead reckoning ATE (m) | RBPF ATE (m) | median ms/update | max ms | "

