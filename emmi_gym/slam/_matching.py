@@ -238,7 +238,8 @@ def _objective(coarse_stage, grid, hits, coarse, pose, offsets, n_beams, s, mean
 def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s, mean, precision, linear_step,
            angular_step, refinements):
     """GMapping's scan matcher: greedy moves of +-step in x, y, theta on :func:`_objective`; halve the
-    steps when none helps, at most ``refinements`` times. Returns (best pose, its value, its matched beams)."""
+    steps when none helps, at most ``refinements`` times. The move straight back to where the last
+    step came from is not scored again (it scored less). Returns (best pose, its value, its matched beams)."""
     current = np.empty((ranges.size, 4))
     turned = np.empty((ranges.size, 4))
     pose = start.copy()
@@ -248,9 +249,13 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
     refinement = 0
     candidate = np.empty(3)
     best_pose = pose.copy()
+    back = -1  # the move that would return to the pose before the last step: known to be worse
     for _ in range(s.max_iterations):
         improved = False
+        taken = -1
         for move in range(6):
+            if move == back:
+                continue
             candidate[:] = pose
             axis = move // 2
             sign = 1.0 if move % 2 == 0 else -1.0
@@ -266,6 +271,8 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
                 best, matched = value, hit
                 best_pose[:] = candidate
                 improved = True
+                taken = move
+        back = taken ^ 1 if improved else -1
         if improved:
             if best_pose[2] != pose[2]:
                 beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, current)
