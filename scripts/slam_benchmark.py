@@ -3,7 +3,7 @@
     python scripts/slam_benchmark.py [--data ../shared/datasets/radish-noisy] [--logs intel aces]
         [--seeds 0 1 2] [--particles 15] [--resolution 0.05] [--max-range 30] [--preset radish-noisy]
         [--slam '{"insertion_range": 8}'] [--filter-seeds 0 1 2] [--out slam_benchmark] [--jobs 1]
-        [--threads N]
+        [--threads N] [--flaser-fov 180]
 
 Every keyframe is an update (linear_update = angular_update = 0, as GMapping's
 ``-linearUpdate 0 -angularUpdate 0``). For each log and seed it prints the best
