@@ -100,7 +100,8 @@ def main() -> None:
                                 [out] * len(runs), [f for _, f in runs], [args.threads] * len(runs),
                                 [args.flaser_fov] * len(runs)))
     print(f"{args.particles} particles, {args.resolution} m cells, every keyframe an update, max range "
-          f"{args.max_range} m, preset {args.preset}, overrides {args.slam}")
+          f"{args.max_range} m, FLASER field of view {args.flaser_fov:g} deg, preset {args.preset}, "
+          f"overrides {args.slam}")
     print("| log | updates | dead reckoning ATE (m) | RBPF ATE (m) | median ms/update | max ms | "
           "of which matching / insertion / metrics (medians) | CPU ms/update | resamplings | "
           "longest resampling (ms) |")
