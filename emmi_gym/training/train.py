@@ -122,7 +122,9 @@ def interrupts_remembered():
     kernels through llvmlite, whose ctypes callbacks discard what they raise (and print it
     as an "Exception ignored" traceback), so a Ctrl-C that arrived there was lost and
     training went on. :class:`StopOnInterrupt` raises it again at the next step, and a
-    KeyboardInterrupt discarded so is not printed (``sys.unraisablehook``).
+    KeyboardInterrupt discarded so is not printed (``sys.unraisablehook``); nor, once a Ctrl-C
+    arrived, is the failing finaliser of an llvmlite object that the interrupt left half-built
+    (``ObjectRef.__del__`` on an object whose ``__init__`` never finished).
     """
     received: list[bool] = []
     if not _handles_ctrl_c():
@@ -134,7 +136,9 @@ def interrupts_remembered():
         raise KeyboardInterrupt
 
     def quiet_when_remembered(unraisable):
-        if not (received and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+        echo = isinstance(unraisable.exc_value, KeyboardInterrupt) or \
+            (getattr(unraisable.object, "__module__", None) or "").startswith("llvmlite.")
+        if not (received and echo):
             previous_hook(unraisable)
 
     previous, previous_hook = signal.signal(signal.SIGINT, remember), sys.unraisablehook
