@@ -10,7 +10,7 @@ from emmi_gym.evaluation import absolute_trajectory_error, loop_closure_update, 
 from emmi_gym.grid import GridGeometry
 from emmi_gym.slam import RBPF, CellCodes, ParticleMaps, RBPFConfig
 from emmi_gym.slam.resampling import survivors_in_place, systematic_resample
-from emmi_gym.slam.revisits import RevisitGrid
+from emmi_gym.slam.revisits import RevisitGrid, revisit_exponent
 from emmi_gym.world import LaserConfig, OdometryNoise, Simulator, drive_route, load_world, rasterise
 from emmi_gym.world.presets import laser_config, odometry_config
 
@@ -371,3 +371,14 @@ def test_a_place_counts_as_revisited_only_after_a_gap_and_stays_so():
     grid.follow(grown)
     assert grid.revisited(pose, wall, angles, 8.0, 7, gap=3)[0]
     assert not grid.revisited(pose + [0.0, 5.0, 0.0], wall, angles, 8.0, 7, gap=3).any()  # (8, 6): never seen
+
+
+def test_places_seen_again_count_at_most_revisit_beams_beams():
+    """``revisit_beams``: up to that many beams seeing a place again keep ``revisit_exponent``; more share
+    that many beams' worth (never below ``likelihood_exponent``); without a bound the exponent stays."""
+    config = RBPFConfig(revisit_exponent=0.05, likelihood_exponent=0.004, revisit_beams=30)
+    assert revisit_exponent(config, 0) == revisit_exponent(config, 30) == 0.05
+    assert revisit_exponent(config, 75) == pytest.approx(0.02)
+    assert 75 * revisit_exponent(config, 75) == pytest.approx(30 * 0.05)
+    assert revisit_exponent(config, 1000) == 0.004
+    assert revisit_exponent(RBPFConfig(revisit_exponent=0.05), 1000) == 0.05

@@ -50,8 +50,12 @@ MatchSettings = namedtuple("MatchSettings", [
 ])
 
 
-def match_settings(config, origin_x: float, origin_y: float, resolution: float, block: int) -> MatchSettings:
-    """The kernel settings of an :class:`~emmi_gym.slam.config.RBPFConfig` on a grid of ``resolution``."""
+def match_settings(config, origin_x: float, origin_y: float, resolution: float, block: int,
+                   revisit_exponent: float | None = None) -> MatchSettings:
+    """The kernel settings of an :class:`~emmi_gym.slam.config.RBPFConfig` on a grid of ``resolution``
+    (``revisit_exponent``: this update's, if not the configuration's)."""
+    if revisit_exponent is None:
+        revisit_exponent = config.revisit_exponent
     radius_cells = config.match_radius / resolution
     return MatchSettings(
         float(origin_x), float(origin_y), float(resolution), int(math.ceil(radius_cells)), radius_cells ** 2,
@@ -59,7 +63,7 @@ def match_settings(config, origin_x: float, origin_y: float, resolution: float, 
         resolution * resolution / (2.0 * config.likelihood_sigma ** 2),
         config.match_linear_step, config.match_angular_step, config.match_refinements,
         config.match_max_iterations, int(block), block * resolution, config.coarse_angular_step,
-        config.coarse_trigger, config.likelihood_exponent, config.revisit_exponent - config.likelihood_exponent,
+        config.coarse_trigger, config.likelihood_exponent, revisit_exponent - config.likelihood_exponent,
         config.min_match_fraction)
 
 

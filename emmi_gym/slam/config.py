@@ -87,6 +87,10 @@ class RBPFConfig:
     revisit_gap: int | None = option(10, Maybe(Integer(1, 1_000_000), "every beam with likelihood_exponent"))
     revisit_reach: float = option(0.4, Real(0.0, 10.0, unit="m"))
     revisit_exponent: float = option(0.05, Real(0.0, 1.0))
+    # at most this many beams' worth of places seen again per update (None: no bound): a laser
+    # that reaches across a building sees places again at almost every update (revisits.py);
+    # 30-45 suit a 30 m laser, and the default keeps the 8 m lasers' closures at full strength
+    revisit_beams: int | None = option(None, Maybe(Integer(1, 100_000), "no bound"))
 
     def __post_init__(self):
         check_fields(self)

@@ -38,7 +38,7 @@ from . import _matching
 from .config import RBPFConfig
 from .occupancy import ParticleMaps
 from .resampling import survivors_in_place, systematic_resample
-from .revisits import RevisitGrid
+from .revisits import RevisitGrid, revisit_exponent
 from .sensor_model import CellCodes
 
 #: Floors on the motion model's pose deviations (m, m, rad), so that a standing update stays proper.
@@ -221,7 +221,8 @@ class RBPF:
         increments = np.empty(m)
         matched = np.zeros(m, dtype=np.bool_)
         g = self.geometry
-        settings = _matching.match_settings(cfg, g.origin_x, g.origin_y, g.resolution, self.maps.block)
+        settings = _matching.match_settings(cfg, g.origin_x, g.origin_y, g.resolution, self.maps.block,
+                                            revisit_exponent(cfg, np.count_nonzero(weight_ranges < self.max_range)))
         run_in_chunks(_matching.improved_proposal, m, self.maps.codes, self.maps.hits, self.maps.coarse, samples,
                       means, precisions, lognorms, proposal_normals, climb_ranges, climb_angles, beam_ranges,
                       beam_angles, weight_ranges, self.revisits is not None, self.max_range, settings, new_poses,

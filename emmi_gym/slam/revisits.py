@@ -16,6 +16,11 @@ a scan's end points (taken at the best particle's pose) last fell in each block 
 after it last had been (seen again: it stays so, since the map there still holds what the
 earlier visit saw). The same beams are tested for every particle, from the best particle's
 predicted pose, so the weights compare like with like.
+
+A laser that reaches across a building sees places again at almost every update (on a 60 m
+drive with a 30 m laser, 72 of 90 likelihood beams at the median update, against none along
+``loop_corridor``'s corridors with 8 m lasers): ``RBPFConfig.revisit_beams`` then bounds how
+much they count, as if at most that many beams saw a place again (:func:`revisit_exponent`).
 """
 
 from __future__ import annotations
@@ -26,6 +31,17 @@ import numba as nb
 import numpy as np
 
 from ..grid import GridGeometry
+
+
+def revisit_exponent(config, seen_again: int) -> float:
+    """The exponent of this update's beams that see a place again, ``seen_again`` of them:
+    ``config.revisit_exponent``, times ``revisit_beams / seen_again`` when more than
+    ``config.revisit_beams`` do (their evidence is not independent: the total counts as that
+    many beams' would), never below ``likelihood_exponent``."""
+    bound = config.revisit_beams
+    if bound is None or seen_again <= bound:
+        return config.revisit_exponent
+    return max(config.likelihood_exponent, config.revisit_exponent * bound / seen_again)
 
 
 class RevisitGrid:
