@@ -330,6 +330,13 @@ def test_bad_lut_is_named():
         C.emmi(codes.astype(np.float32), [1, 1], lut=np.full(256, 0.5))
     with pytest.raises(ValueError, match="probabilities in \\[0, 1\\]"):
         C.emmi(codes, [1, 1], lut=np.full(256, 2.0))
+    agreed = np.zeros(256, dtype=np.int64)
+    with pytest.raises(ValueError, match="codes of 2 particles per cell but 3 weights"):
+        C.emmi_of_parts(codes.T, [1, 1, 1], agreed, lut=np.full(256, 0.5))
+    with pytest.raises(ValueError, match=r"\(N cells, M particles\)"):
+        C.expected_map_of_cells(codes.ravel(), [1, 1], lut=np.full(256, 0.5))
+    with pytest.raises(ValueError, match="needs 256 entries"):
+        C.emmi_of_parts(codes.T, [1, 1], agreed, lut=np.full(10, 0.5))
 
 
 def test_observed_cells_decide_by_the_entropy_rule_of_eq_10():
@@ -356,13 +363,14 @@ def test_emmi_of_parts_is_the_same_on_any_number_of_threads():
     disputed = np.flatnonzero(~np.all(grids == grids[:1], axis=0))
     agreed = np.bincount(grids[0].ravel()[np.all(grids == grids[:1], axis=0).ravel()].astype(np.int64) + 128,
                          minlength=256)
+    rows = grids.reshape(4, -1)[:, disputed].T
     w = np.array([0.1, 0.2, 0.3, 0.4])
     threads = kernel_threads()
     try:
         set_kernel_threads(1)
-        one = C.emmi_of_parts(grids, disputed, w, agreed, lut=lut)
+        one = C.emmi_of_parts(rows, w, agreed, lut=lut)
         set_kernel_threads(3)
-        three = C.emmi_of_parts(grids, disputed, w, agreed, lut=lut)
+        three = C.emmi_of_parts(rows, w, agreed, lut=lut)
     finally:
         set_kernel_threads(threads)
     assert disputed.size > 60000 and one == three

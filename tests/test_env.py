@@ -538,7 +538,7 @@ def test_maps_beyond_the_memory_bound_are_refused_with_what_they_would_take():
     threads = kernel_threads()
     try:
         set_kernel_threads(1)  # each insertion thread adds its own working memory
-        with pytest.raises(MapTooLarge, match=r"1700 x 3500 cells .* for 1000 particles would take 27.8 GiB, above "
+        with pytest.raises(MapTooLarge, match=r"1700 x 3500 cells .* for 1000 particles would take 33.4 GiB, above "
                                               r"the bound of 4 GiB"):
             gym.make("emmi_gym/LoopCorridor-v0", particles=1000, resolution=0.01)
     finally:

@@ -352,3 +352,24 @@ def test_code_histogram_matches_bincount(seed, n):
     codes = np.random.default_rng(seed).integers(-128, 128, n).astype(np.int8)
     np.testing.assert_array_equal(certainty_kernels.code_histogram(codes, 256, 128),
                                   np.bincount(codes.astype(np.int64) + 128, minlength=256))
+
+
+@given(st.lists(st.integers(0, 2**31 - 1), max_size=300, unique=True), st.integers(0, 3))
+def test_sorted_cells_is_a_sort(values, scale):
+    """The radix sort of the resampling's cells: the same as np.sort, whatever the largest index."""
+    cells = (np.array(values, dtype=np.int64) >> (8 * scale)).astype(np.int32)
+    np.testing.assert_array_equal(K.sorted_cells(cells), np.sort(cells))
+
+
+def test_resample_rows_copy_the_parents_columns_and_name_the_cells_that_agree():
+    rng = np.random.default_rng(3)
+    table = rng.integers(-3, 3, (500, 6)).astype(np.int8)
+    table[::7] = table[::7, :1]  # rows that agree already
+    parents = np.array([0, 0, 2, 2, 4, 0])
+    cells = rng.permutation(10_000)[:500].astype(np.int32)
+    expected, unused = table[:, parents], table[400:].copy()
+    candidates = np.empty(500, dtype=np.int32)
+    n = K.resample_rows(table, 400, parents, cells, candidates)  # the last 100 rows are not in use
+    np.testing.assert_array_equal(table[:400], expected[:400])
+    np.testing.assert_array_equal(table[400:], unused)
+    np.testing.assert_array_equal(candidates[:n], cells[:400][np.all(expected[:400] == expected[:400, :1], axis=1)])

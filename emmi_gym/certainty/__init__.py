@@ -4,7 +4,8 @@ Pure functions of NumPy arrays. Information is in bits (as the paper); entropies
 poses, paths and the joint entropy are in nats (differential entropies).
 """
 
-from .expected_map import emmi, emmi_of_parts, expected_map, joint_entropy_of_parts, weighted_map_entropy
+from .expected_map import (emmi, emmi_of_parts, expected_map, expected_map_of_cells, joint_entropy_of_parts,
+                           weighted_map_entropy)
 from .information import (
     DEFAULT_OBSERVED_TOL,
     as_probability,
@@ -30,6 +31,7 @@ __all__ = [
     "emmi",
     "emmi_of_parts",
     "expected_map",
+    "expected_map_of_cells",
     "joint_entropy",
     "joint_entropy_of_parts",
     "loop_displacement_spread",

@@ -67,48 +67,47 @@ def expected_map_codes(grids, weights, lut, offset, out):
             out[j] += wi * lut[np.int64(row[j]) + offset]
 
 
-@nb.njit(cache=True, nogil=True)
-def information_at(start, stop, grids, cells, weights, lut, offset, max_entropy_bits, unobserved_halfwidth,
-                   information, observed):
-    """Eq. (6), then eq. (9), at the flat indices ``cells[start:stop]`` of integer-coded grids (M, N).
+@nb.njit(cache=True, inline="always")
+def _row_expectation(table, k, weights, lut, offset):
+    """Eq. (6) of the cell whose codes in the M grids are ``table[k]``: ``sum_i w_i lut[code_i + offset]``."""
+    p = 0.0
+    for i in range(table.shape[1]):
+        p += weights[i] * lut[np.int64(table[k, i]) + offset]
+    return p
 
-    Each cell's expected map is ``sum_i w_i lut[code_i + offset]``; ``observed[k]`` says
-    whether it counts as observed (entropy below ``max_entropy_bits``, decided without a
-    logarithm within ``unobserved_halfwidth`` of 0.5) and ``information[k]`` holds its
-    information ``1 - H2`` (0 if unobserved). Cells in increasing order read the M grids
-    front to back; chunks of cells may run on parallel threads (``emmi_gym.threads``).
-    """
-    m = grids.shape[0]
+
+@nb.njit(cache=True, nogil=True)
+def expected_at(start, stop, table, weights, lut, offset, out):
+    """Eq. (6) of the cells ``table[start:stop]`` (one row of M codes per cell) into ``out``."""
     for k in range(start, stop):
-        c = cells[k]
-        p = 0.0
-        for i in range(m):
-            p += weights[i] * lut[np.int64(grids[i, c]) + offset]
-        information[k] = 0.0
-        observed[k] = False
-        if abs(p - 0.5) >= unobserved_halfwidth:
-            h = _entropy_bits(p)
-            if h < max_entropy_bits:
-                information[k] = 1.0 - h
-                observed[k] = True
+        out[k] = _row_expectation(table, k, weights, lut, offset)
 
 
 @nb.njit(cache=True)
-def information_kernel(p, max_entropy_bits, unobserved_halfwidth):
-    """Map information sum of (1 - H2), eq. (9), and the observed-cell count of eq. (10).
+def beyond_band(p, unobserved_halfwidth, p_out, q_out):
+    """Copy the cells of ``p`` farther than ``unobserved_halfwidth`` from 0.5 (the others are surely
+    unobserved, eq. 10) into ``p_out``, with ``1 - p`` into ``q_out``; returns how many."""
+    n = 0
+    for j in range(p.size):
+        x = np.float64(p[j])
+        if abs(x - 0.5) >= unobserved_halfwidth:
+            p_out[n] = x
+            q_out[n] = 1.0 - x
+            n += 1
+    return n
 
-    A cell is observed when its entropy is below ``max_entropy_bits``. Cells with
-    |p - 0.5| < ``unobserved_halfwidth`` (chosen inside the exact bound) are skipped
-    without taking a logarithm: most of a map is unknown.
-    Returns (information over observed cells in bits, number of observed cells).
-    """
+
+@nb.njit(cache=True)
+def information_sum(p, q, log_p, log_q, max_entropy_bits):
+    """Map information over the observed cells, eq. (9), and their count, eq. (10), from each cell's
+    ``p``, ``q = 1 - p`` and their natural logarithms: a cell is observed when its entropy H2 is
+    below ``max_entropy_bits`` (H2 = 0 at p in {0, 1})."""
     info = 0.0
     n_obs = 0
     for j in range(p.size):
-        x = np.float64(p[j])
-        if abs(x - 0.5) < unobserved_halfwidth:
-            continue
-        h = _entropy_bits(x)
+        h = 0.0
+        if p[j] > 0.0 and q[j] > 0.0:
+            h = -(p[j] * log_p[j] + q[j] * log_q[j]) * _INV_LN2
         if h < max_entropy_bits:
             info += 1.0 - h
             n_obs += 1

@@ -6,9 +6,8 @@ import numpy as np
 
 from ..threads import MIN_CELLS_PER_THREAD, run_in_chunks
 from . import _kernels
-from .grids import ParticleGrids
-from .information import (DEFAULT_OBSERVED_TOL, cell_information, information_and_observed, max_entropy_bits,
-                          observed_cells, unobserved_halfwidth)
+from .grids import ParticleGrids, cell_rows
+from .information import DEFAULT_OBSERVED_TOL, cell_information, information_and_observed, observed_cells
 from .weights import normalize_weights
 
 
@@ -39,23 +38,31 @@ def emmi(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool =
     return info / n_obs if n_obs else 0.0
 
 
-def emmi_of_parts(grids, disputed, weights, agreed_counts, *, lut, log_weights: bool = False,
+def expected_map_of_cells(cell_codes, weights, *, lut, log_weights: bool = False) -> np.ndarray:
+    """Eq. (6) at N cells given by their integer codes in the M particles' grids, ``cell_codes`` (N, M)
+    (a row per cell), with the probability table ``lut``: float64 (N,). Split among the kernel threads."""
+    return _expected_at_rows(*cell_rows(cell_codes, weights, lut=lut, log_weights=log_weights))
+
+
+def _expected_at_rows(rows, weights, lut, offset) -> np.ndarray:
+    out = np.empty(rows.shape[0])
+    run_in_chunks(_kernels.expected_at, rows.shape[0], rows, weights, lut, offset, out, min_chunk=MIN_CELLS_PER_THREAD)
+    return out
+
+
+def emmi_of_parts(cell_codes, weights, agreed_counts, *, lut, log_weights: bool = False,
                   observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
-    """EMMI, eq. (11), of integer-coded grids (M, H, W) whose particles agree everywhere but on the
-    cells ``disputed`` (flat indices): an agreed cell's expected map (eq. 6) is its own
-    probability whatever the weights, so those cells enter only through ``agreed_counts``
-    (how many agreed cells hold each code, indexed like ``lut``), and only the disputed ones
-    are averaged with the weights. Equal to :func:`emmi` of the whole grids, at the cost of
-    the disputed cells, split among the kernel threads (the same result on any number of them).
+    """EMMI, eq. (11), of integer-coded grids whose particles agree everywhere but on N cells, given by
+    their codes in the M grids, ``cell_codes`` (N, M) (a row per cell, as
+    :meth:`~emmi_gym.slam.ParticleMaps.disputed_codes` keeps them): an agreed cell's expected map
+    (eq. 6) is its own probability whatever the weights, so those cells enter only through
+    ``agreed_counts`` (how many agreed cells hold each code, indexed like ``lut``), and only the
+    disputed ones are averaged with the weights. Equal to :func:`emmi` of the whole grids, at the
+    cost of the disputed cells, split among the kernel threads (the same result on any number of them).
     """
-    pg = ParticleGrids.from_arrays(grids, weights, lut=lut, log_weights=log_weights)
-    cells = np.asarray(disputed)
-    information, observed = np.empty(cells.size), np.empty(cells.size, dtype=np.bool_)
-    max_bits = max_entropy_bits(observed_tol)
-    run_in_chunks(_kernels.information_at, cells.size, pg.flat, cells, pg.weights, pg.lut, pg.offset, max_bits,
-                  unobserved_halfwidth(max_bits), information, observed, min_chunk=MIN_CELLS_PER_THREAD)
-    info, n_obs = float(information.sum()), int(np.count_nonzero(observed))
-    counts, table = np.asarray(agreed_counts), pg.lut
+    rows, w, table, offset = cell_rows(cell_codes, weights, lut=lut, log_weights=log_weights)
+    info, n_obs = information_and_observed(_expected_at_rows(rows, w, table, offset), observed_tol)
+    counts = np.asarray(agreed_counts)
     observed = (counts > 0) & observed_cells(table, observed_tol)
     info += float(counts[observed] @ cell_information(table[observed]))
     n_obs += int(counts[observed].sum())

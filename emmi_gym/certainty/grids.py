@@ -43,15 +43,7 @@ class ParticleGrids:
             raise ValueError(f"{g.shape[0]} grids but {w.shape[0]} weights")
         offset = 0
         if lut is not None:
-            if g.dtype.type not in _CODE_DTYPES:
-                raise ValueError(f"grids with a lut must be integer codes {[d.__name__ for d in _CODE_DTYPES]}, got {g.dtype}")
-            lut = np.ascontiguousarray(lut, dtype=np.float64)
-            info = np.iinfo(g.dtype)
-            if lut.shape != (info.max - info.min + 1,):
-                raise ValueError(f"a lut for {g.dtype} codes needs {info.max - info.min + 1} entries, got {lut.shape}")
-            if not ((lut >= 0) & (lut <= 1)).all():
-                raise ValueError("lut entries must be probabilities in [0, 1]")
-            offset = -int(info.min)
+            lut, offset = code_table(g.dtype, lut)
         elif g.dtype not in (np.float32, np.float64):
             g = g.astype(np.float64)
         flat = np.ascontiguousarray(g.reshape(g.shape[0], -1))
@@ -88,6 +80,33 @@ class ParticleGrids:
         if self.logodds:
             return np.array([_kernels.entropy_sum(logistic(row)) for row in self.flat])
         return np.array([_kernels.entropy_sum(row) for row in self.flat])
+
+
+def code_table(dtype, lut) -> tuple[np.ndarray, int]:
+    """``lut`` checked as the probability table of integer codes of ``dtype`` (one entry per code),
+    as float64, with the offset from a code to its entry."""
+    if np.dtype(dtype).type not in _CODE_DTYPES:
+        raise ValueError(f"grids with a lut must be integer codes {[d.__name__ for d in _CODE_DTYPES]}, got {dtype}")
+    lut = np.ascontiguousarray(lut, dtype=np.float64)
+    info = np.iinfo(dtype)
+    if lut.shape != (info.max - info.min + 1,):
+        raise ValueError(f"a lut for {dtype} codes needs {info.max - info.min + 1} entries, got {lut.shape}")
+    if not ((lut >= 0) & (lut <= 1)).all():
+        raise ValueError("lut entries must be probabilities in [0, 1]")
+    return lut, -int(info.min)
+
+
+def cell_rows(cell_codes, weights, *, lut, log_weights: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Checked (N, M) integer codes of N cells in M particles' grids (a row per cell), with the normalised
+    weights, the probability table and its offset (see :func:`code_table`)."""
+    rows = np.ascontiguousarray(cell_codes)
+    if rows.ndim != 2:
+        raise ValueError(f"cell codes must be (N cells, M particles), got shape {rows.shape}")
+    w = normalize_weights(weights, log=log_weights)
+    if w.shape[0] != rows.shape[1]:
+        raise ValueError(f"codes of {rows.shape[1]} particles per cell but {w.shape[0]} weights")
+    lut, offset = code_table(rows.dtype, lut)
+    return rows, w, lut, offset
 
 
 def logistic(logodds) -> np.ndarray:

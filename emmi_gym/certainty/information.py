@@ -93,10 +93,30 @@ def unobserved_halfwidth(max_bits: float) -> float:
     return 0.9 * observed_halfwidth(max_bits)
 
 
+#: Cells per block of :func:`information_and_observed` (its buffers stay in cache).
+INFORMATION_BLOCK = 16384
+
+
 def information_and_observed(p_flat: np.ndarray, observed_tol: float) -> tuple[float, int]:
-    """(Information over observed cells in bits, number of observed cells) of a flat float grid."""
+    """(Information over observed cells in bits, eq. 9, number of observed cells, eq. 10) of a flat float
+    grid, block by block: the cells within :func:`unobserved_halfwidth` of 0.5 are set aside without a
+    logarithm (most of a map is unknown), the others' logarithms come from NumPy's vectorised ``log``
+    (several cells per instruction; a scalar ``log`` per cell took three quarters of EMMI's pass)."""
     max_bits = max_entropy_bits(observed_tol)
-    return _kernels.information_kernel(p_flat, max_bits, unobserved_halfwidth(max_bits))
+    halfwidth = unobserved_halfwidth(max_bits)
+    p_flat = np.ascontiguousarray(p_flat).ravel()
+    p, q = np.empty(min(p_flat.size, INFORMATION_BLOCK)), np.empty(min(p_flat.size, INFORMATION_BLOCK))
+    log_p, log_q = np.empty_like(p), np.empty_like(q)
+    info, n_obs = 0.0, 0
+    for start in range(0, p_flat.size, INFORMATION_BLOCK):
+        n = _kernels.beyond_band(p_flat[start:start + INFORMATION_BLOCK], halfwidth, p, q)
+        with np.errstate(divide="ignore"):
+            np.log(p[:n], out=log_p[:n])
+            np.log(q[:n], out=log_q[:n])
+        block_info, block_obs = _kernels.information_sum(p[:n], q[:n], log_p[:n], log_q[:n], max_bits)
+        info += block_info
+        n_obs += block_obs
+    return info, n_obs
 
 
 def observed_cells(p, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:

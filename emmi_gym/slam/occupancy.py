@@ -52,19 +52,24 @@ class ParticleMaps:
     The maps also know where the particles **agree** (every grid holds the same code and
     mean hit point): ``status`` (H, W) holds an agreed cell's code or ``DISPUTED``,
     ``agreed_counts`` the code histogram of the agreed cells, and a list the disputed
-    cells, all re-derived after each scan for the cells it touched. An agreed cell's
-    expected map is its own probability whatever the weights, so EMMI and the expected
-    map need a pass over the disputed cells only, and resampling copies only those:
+    cells with their codes in every grid side by side (a table of M bytes per cell), all
+    re-derived after each scan for the cells it touched. An agreed cell's expected map is
+    its own probability whatever the weights, so EMMI and the expected map need a pass
+    over the disputed cells' table only (contiguous, not M gathers from grids far apart in
+    memory), and resampling copies only those cells:
     an update costs what the particles disagree on, not the grids' extent. The extent
     can grow in chunks (for logs whose size is not known in advance); growing keeps
     cells aligned.
     """
 
-    #: Bytes a cell takes: per particle its code, mean hit and share of a coarse count; shared, its
-    #: agreement status and list positions; per insertion thread, its stamp and touched list.
-    BYTES_PER_CELL_PARTICLE = 5
+    #: Bytes a cell takes: per particle its code, mean hit, share of a coarse count and (when every
+    #: cell is disputed) its row in the disputed cells' table; shared, its agreement status and list
+    #: positions; per insertion thread, its stamp and touched list.
+    BYTES_PER_CELL_PARTICLE = 6
     BYTES_PER_CELL = 10
     BYTES_PER_CELL_THREAD = 12
+    #: Rows the disputed cells' table starts with.
+    TABLE_ROWS = 4096
 
     @classmethod
     def check_memory(cls, rows: int, cols: int, n_particles: int, resolution: float) -> None:
@@ -93,6 +98,7 @@ class ParticleMaps:
         self.agreed_counts = self.counts[0].copy()
         self._position = np.full(geometry.shape, -1, dtype=np.int32)
         self._disputed = np.empty(geometry.rows * geometry.cols, dtype=np.int32)
+        self._table = np.empty((min(self.TABLE_ROWS, geometry.rows * geometry.cols), n_particles), dtype=np.int8)
         self._n_disputed = 0
         self._scratch: list[_InsertionScratch] = []
 
@@ -102,12 +108,13 @@ class ParticleMaps:
 
     @property
     def disputed_cells(self) -> np.ndarray:
-        """Flat indices of the cells on which the particles' grids differ (a view, increasing)."""
+        """Flat indices of the cells on which the particles' grids differ (a view; the order is that of
+        :meth:`disputed_codes`, the same whatever the number of threads, not increasing)."""
         return self._disputed[:self._n_disputed]
 
     def disputed_codes(self) -> np.ndarray:
-        """(M, N) codes of the disputed cells."""
-        return self.codes.reshape(self.n_particles, -1)[:, self.disputed_cells]
+        """(N, M) codes of the disputed cells, row k those of ``disputed_cells[k]`` in every grid (a view)."""
+        return self._table[:self._n_disputed]
 
     def insert(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range: float,
                free_range: float, insertion_range: float | None = None, depth_jump: float = 0.3) -> None:
@@ -142,16 +149,23 @@ class ParticleMaps:
 
     def _refresh(self, cells: np.ndarray, particles: np.ndarray) -> None:
         """Re-derive the agreement of ``cells`` among the grids of ``particles`` (on the kernel threads),
-        then keep the disputed list in memory order (passes over it then read the grids front to
-        back; timsort takes the mostly sorted list in near-linear time)."""
+        and the table's rows of those that are disputed."""
         agreement = np.empty(cells.size, dtype=np.int16)
-        run_in_chunks(_kernels.agreement_of_cells, cells.size, *self._flat_grids(), particles, cells, agreement,
+        rows = np.empty((cells.size, self.n_particles), dtype=np.int8)
+        run_in_chunks(_kernels.agreement_of_cells, cells.size, *self._flat_grids(), particles, cells, agreement, rows,
                       min_chunk=MIN_CELLS_PER_THREAD)
-        self._n_disputed = _kernels.record_agreement(cells, agreement, _flat(self.status), self.agreed_counts,
-                                                     self._disputed, self._n_disputed, _flat(self._position))
-        listed = self.disputed_cells
-        listed.sort(kind="stable")
-        _flat(self._position)[listed] = np.arange(listed.size, dtype=np.int32)
+        self._reserve(self._n_disputed + cells.size)
+        self._n_disputed = _kernels.record_agreement(cells, agreement, rows, _flat(self.status), self.agreed_counts,
+                                                     self._disputed, self._table, self._n_disputed,
+                                                     _flat(self._position))
+
+    def _reserve(self, n_rows: int) -> None:
+        """Room for ``n_rows`` rows in the disputed cells' table (at most one per cell): doubled as needed."""
+        capacity, n_rows = self._table.shape[0], min(n_rows, self.status.size)
+        if n_rows > capacity:
+            grown = np.empty((min(max(n_rows, 2 * capacity), self.status.size), self.n_particles), dtype=np.int8)
+            grown[:self._n_disputed] = self._table[:self._n_disputed]
+            self._table = grown
 
     def _flat_grids(self) -> tuple[np.ndarray, np.ndarray]:
         """``codes`` as (M, H * W) and ``hits`` as (M, H * W, 3): views, for kernels that index cells flat."""
@@ -160,19 +174,22 @@ class ParticleMaps:
     def resample(self, parents: np.ndarray) -> None:
         """Particle i takes the grid of particle ``parents[i]``, an arrangement that keeps survivors in
         place (:func:`~emmi_gym.slam.resampling.survivors_in_place`): only the dead particles'
-        disputed cells are copied (elsewhere all grids already hold the same values), then the
-        agreement of those cells is re-derived among the survivors."""
+        disputed cells are copied (elsewhere all grids already hold the same values), the
+        disputed cells' table takes the same copies, and the agreement is re-derived among the
+        survivors for the cells whose codes now agree (the others stay disputed)."""
         parents = np.ascontiguousarray(parents, dtype=np.int64)
         if parents.shape != (self.n_particles,) or not np.all((parents >= 0) & (parents < self.n_particles)):
             raise ValueError(f"parents must be {self.n_particles} particle indices, got {parents!r:.200}")
         if not np.array_equal(parents[parents], parents):
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
-        cells = self.disputed_cells.copy()
+        cells = _kernels.sorted_cells(self.disputed_cells)  # the copies go through each grid in memory order
         run_in_chunks(_kernels.resample_cells, self.n_particles, *self._flat_grids(), self.coarse, self.block,
                       self.geometry.cols, cells, parents)
         self.counts = self.counts[parents]
-        self._refresh(cells, np.unique(parents))
+        candidates = np.empty(self._n_disputed, dtype=np.int32)
+        n = _kernels.resample_rows(self._table, self._n_disputed, parents, self._disputed, candidates)
+        self._refresh(_kernels.sorted_cells(candidates[:n]), np.unique(parents))
 
     def expected_map(self, weights: np.ndarray) -> np.ndarray:
         """EM, eq. (6), (H, W) float64, for normalised ``weights``: an agreed cell's own probability, the
@@ -180,7 +197,8 @@ class ParticleMaps:
         table = self.cell_codes.probability
         em = table[np.where(self.status == _kernels.DISPUTED, 0, self.status).astype(np.int64) + 128]
         if self._n_disputed:
-            em.reshape(-1)[self.disputed_cells] = certainty.expected_map(self.disputed_codes(), weights, lut=table)
+            em.reshape(-1)[self.disputed_cells] = certainty.expected_map_of_cells(self.disputed_codes(), weights,
+                                                                                 lut=table)
         return em
 
     def probabilities(self, particle: int) -> np.ndarray:

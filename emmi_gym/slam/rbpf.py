@@ -335,8 +335,7 @@ class RBPF:
         path_entropy = certainty.path_entropy(self.paths, w)
         metrics = UpdateMetrics(
             step=self.step, time=timestamp,
-            emmi=certainty.emmi_of_parts(self.maps.codes, self.maps.disputed_cells, w, self.maps.agreed_counts,
-                                         lut=lut),
+            emmi=certainty.emmi_of_parts(self.maps.disputed_codes(), w, self.maps.agreed_counts, lut=lut),
             mean_information_best=certainty.mean_information_of_code_counts(counts[self.best], lut),
             pose_entropy=certainty.pose_entropy(self.poses, w),
             weight_entropy=certainty.weight_entropy(w),
