@@ -367,9 +367,37 @@ def test_resample_rows_copy_the_parents_columns_and_name_the_cells_that_agree():
     table[::7] = table[::7, :1]  # rows that agree already
     parents = np.array([0, 0, 2, 2, 4, 0])
     cells = rng.permutation(10_000)[:500].astype(np.int32)
-    expected, unused = table[:, parents], table[400:].copy()
+    expected, before = table[:, parents], table.copy()
     candidates = np.empty(500, dtype=np.int32)
-    n = K.resample_rows(table, 400, parents, cells, candidates)  # the last 100 rows are not in use
-    np.testing.assert_array_equal(table[:400], expected[:400])
-    np.testing.assert_array_equal(table[400:], unused)
-    np.testing.assert_array_equal(candidates[:n], cells[:400][np.all(expected[:400] == expected[:400, :1], axis=1)])
+    n = K.resample_rows(100, 400, table, parents, cells, candidates)  # rows 100-399 only
+    np.testing.assert_array_equal(table[100:400], expected[100:400])
+    np.testing.assert_array_equal(table[:100], before[:100])
+    np.testing.assert_array_equal(table[400:], before[400:])
+    np.testing.assert_array_equal(candidates[100:100 + n],
+                                  cells[100:400][np.all(expected[100:400] == expected[100:400, :1], axis=1)])
+
+
+@pytest.mark.parametrize("n_agreed", [3, 40])  # few: holes filled from the end; many: one compacting pass
+def test_unlist_agreed_drops_exactly_the_agreed_cells_from_the_list_and_the_table(n_agreed):
+    rng = np.random.default_rng(n_agreed)
+    n_cells, listed = 500, 60
+    disputed = np.empty(n_cells, dtype=np.int32)
+    disputed[:listed] = rng.permutation(n_cells)[:listed]
+    table = rng.integers(-100, 100, (n_cells, 4)).astype(np.int8)
+    status = np.full(n_cells, 7, dtype=np.int16)
+    status[disputed[:listed]] = K.DISPUTED
+    position = np.full(n_cells, -1, dtype=np.int32)
+    position[disputed[:listed]] = np.arange(listed)
+    cells = np.sort(rng.choice(disputed[:listed], 45, replace=False))
+    agreement = np.full(cells.size, K.DISPUTED, dtype=np.int16)
+    agreement[rng.choice(cells.size, n_agreed, replace=False)] = 5
+    rows = {int(c): table[k].copy() for k, c in enumerate(disputed[:listed])}
+    counts = np.zeros(256, dtype=np.int64)
+    n = K.unlist_agreed(cells, agreement, status, counts, disputed, table, listed, position)
+    gone = set(cells[agreement != K.DISPUTED].tolist())
+    assert n == listed - n_agreed and counts[5 + 128] == n_agreed
+    assert sorted(disputed[:n].tolist()) == sorted(set(rows) - gone)
+    for k, c in enumerate(disputed[:n]):
+        assert position[c] == k and status[c] == K.DISPUTED
+        np.testing.assert_array_equal(table[k], rows[int(c)])
+    assert all(position[c] == -1 and status[c] == 5 for c in gone)

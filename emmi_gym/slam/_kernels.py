@@ -243,6 +243,22 @@ def agreement_of_cells(start, stop, codes, hits, particles, cells, out, rows):
                 rows[k, i] = codes[i, cell]
 
 
+@nb.njit(cache=True, nogil=True)
+def agreement_of_hits(start, stop, codes, hits, particles, cells, out):
+    """As :func:`agreement_of_cells` for cells whose codes are known to agree in every grid (after a
+    resampling, from the disputed cells' table): only the mean hit points are compared."""
+    first = particles[0]
+    for k in range(start, stop):
+        cell = cells[k]
+        out[k] = codes[first, cell]
+        for j in range(1, particles.size):
+            i = particles[j]
+            if hits[i, cell, 0] != hits[first, cell, 0] or hits[i, cell, 1] != hits[first, cell, 1] or \
+                    hits[i, cell, 2] != hits[first, cell, 2]:
+                out[k] = DISPUTED
+                break
+
+
 @nb.njit(cache=True)
 def record_agreement(cells, agreement, rows, status, agreed_counts, disputed, table, n_disputed, position):
     """Store the agreement of ``cells`` (flat indices, no repeats; ``agreement`` and ``rows`` from
@@ -282,6 +298,45 @@ def record_agreement(cells, agreement, rows, status, agreed_counts, disputed, ta
 
 
 @nb.njit(cache=True)
+def unlist_agreed(cells, agreement, status, agreed_counts, disputed, table, n_disputed, position):
+    """After a resampling: record the agreed ones among ``cells`` (all listed as disputed; ``agreement``
+    from :func:`agreement_of_cells`) as :func:`record_agreement` would, and drop them from the list
+    and the table: each hole filled from the list's end when few go, or, when many go (as at a
+    loop's closure), in one pass that reads the list front to back. Returns the new length."""
+    agreed = 0
+    for k in range(cells.size):
+        code = agreement[k]
+        if code != DISPUTED:
+            status[cells[k]] = code
+            agreed_counts[code + 128] += 1
+            agreed += 1
+    if 2 * agreed < n_disputed:
+        for k in range(cells.size):
+            if agreement[k] != DISPUTED:
+                cell = cells[k]
+                p = position[cell]
+                n_disputed -= 1
+                last = disputed[n_disputed]
+                disputed[p] = last
+                table[p] = table[n_disputed]
+                position[last] = p
+                position[cell] = -1
+        return n_disputed
+    kept = 0
+    for k in range(n_disputed):
+        cell = disputed[k]
+        if status[cell] == DISPUTED:
+            if kept != k:
+                disputed[kept] = cell
+                table[kept] = table[k]
+                position[cell] = kept
+            kept += 1
+        else:
+            position[cell] = -1
+    return kept
+
+
+@nb.njit(cache=True)
 def sorted_cells(cells):
     """``cells`` (non-negative int32 flat indices) in increasing order: an LSD radix sort, 11 bits a
     pass (NumPy's comparison sort took ten times as long on 300 000 cells in no order)."""
@@ -303,16 +358,17 @@ def sorted_cells(cells):
     return out
 
 
-@nb.njit(cache=True)
-def resample_rows(table, n_rows, parents, cells, candidates):
-    """Rows ``table[:n_rows]`` (the codes of the disputed cells ``cells[k]`` in every grid) after particle
-    i took the grid of ``parents[i]`` (survivors keep their own: ``parents[parents] == parents``).
-    The cells whose codes now agree in every grid go to ``candidates`` (their mean hit points may
-    still differ); returns how many. The others stay disputed without reading a grid."""
+@nb.njit(cache=True, nogil=True)
+def resample_rows(start, stop, table, parents, cells, candidates):
+    """Rows ``table[start:stop]`` (the codes of the disputed cells ``cells[k]`` in every grid) after
+    particle i took the grid of ``parents[i]`` (survivors keep their own: ``parents[parents] ==
+    parents``). The cells whose codes now agree in every grid go to ``candidates[start:]`` (their
+    mean hit points may still differ); returns how many. The others stay disputed without
+    reading a grid. Chunks of rows may run on parallel threads."""
     m = table.shape[1]
     dead = np.array([i for i in range(m) if parents[i] != i], dtype=np.int64)
-    n = 0
-    for k in range(n_rows):
+    n = start
+    for k in range(start, stop):
         for i in dead:
             table[k, i] = table[k, parents[i]]
         same = True
@@ -321,7 +377,7 @@ def resample_rows(table, n_rows, parents, cells, candidates):
         if same:
             candidates[n] = cells[k]
             n += 1
-    return n
+    return n - start
 
 
 @nb.njit(cache=True, nogil=True)

@@ -188,8 +188,17 @@ class ParticleMaps:
                       self.geometry.cols, cells, parents)
         self.counts = self.counts[parents]
         candidates = np.empty(self._n_disputed, dtype=np.int32)
-        n = _kernels.resample_rows(self._table, self._n_disputed, parents, self._disputed, candidates)
-        self._refresh(_kernels.sorted_cells(candidates[:n]), np.unique(parents))
+        chunks = chunk_bounds(self._n_disputed, MIN_CELLS_PER_THREAD)
+        found = run_calls([(_kernels.resample_rows, start, stop, self._table, parents, self._disputed, candidates)
+                           for start, stop in chunks])
+        cells = _kernels.sorted_cells(np.concatenate([candidates[start:start + n]
+                                                      for (start, _), n in zip(chunks, found)]))
+        agreement = np.empty(cells.size, dtype=np.int16)
+        run_in_chunks(_kernels.agreement_of_hits, cells.size, *self._flat_grids(), np.unique(parents), cells,
+                      agreement, min_chunk=MIN_CELLS_PER_THREAD)
+        self._n_disputed = _kernels.unlist_agreed(cells, agreement, _flat(self.status), self.agreed_counts,
+                                                  self._disputed, self._table, self._n_disputed,
+                                                  _flat(self._position))
 
     def expected_map(self, weights: np.ndarray) -> np.ndarray:
         """EM, eq. (6), (H, W) float64, for normalised ``weights``: an agreed cell's own probability, the
