@@ -259,6 +259,20 @@ def agreement_of_hits(start, stop, codes, hits, particles, cells, out):
                 break
 
 
+@nb.njit(cache=True, inline="always")
+def _unlist(cell, disputed, table, n_disputed, position):
+    """Take listed ``cell`` out of the disputed list and the table: the last entry takes its place.
+    Returns the new length of the list."""
+    p = position[cell]
+    n_disputed -= 1
+    last = disputed[n_disputed]
+    disputed[p] = last
+    table[p] = table[n_disputed]
+    position[last] = p
+    position[cell] = -1
+    return n_disputed
+
+
 @nb.njit(cache=True)
 def record_agreement(cells, agreement, rows, status, agreed_counts, disputed, table, n_disputed, position):
     """Store the agreement of ``cells`` (flat indices, no repeats; ``agreement`` and ``rows`` from
@@ -280,13 +294,8 @@ def record_agreement(cells, agreement, rows, status, agreed_counts, disputed, ta
         p = position[cell]
         if code != DISPUTED:
             agreed_counts[code + 128] += 1
-            if p >= 0:  # unlist: the last entry takes its place
-                n_disputed -= 1
-                last = disputed[n_disputed]
-                disputed[p] = last
-                table[p] = table[n_disputed]
-                position[last] = p
-                position[cell] = -1
+            if p >= 0:
+                n_disputed = _unlist(cell, disputed, table, n_disputed, position)
         else:
             if p < 0:
                 p = n_disputed
@@ -300,7 +309,7 @@ def record_agreement(cells, agreement, rows, status, agreed_counts, disputed, ta
 @nb.njit(cache=True)
 def unlist_agreed(cells, agreement, status, agreed_counts, disputed, table, n_disputed, position):
     """After a resampling: record the agreed ones among ``cells`` (all listed as disputed; ``agreement``
-    from :func:`agreement_of_cells`) as :func:`record_agreement` would, and drop them from the list
+    from :func:`agreement_of_hits`) as :func:`record_agreement` would, and drop them from the list
     and the table: each hole filled from the list's end when few go, or, when many go (as at a
     loop's closure), in one pass that reads the list front to back. Returns the new length."""
     agreed = 0
@@ -313,14 +322,7 @@ def unlist_agreed(cells, agreement, status, agreed_counts, disputed, table, n_di
     if 2 * agreed < n_disputed:
         for k in range(cells.size):
             if agreement[k] != DISPUTED:
-                cell = cells[k]
-                p = position[cell]
-                n_disputed -= 1
-                last = disputed[n_disputed]
-                disputed[p] = last
-                table[p] = table[n_disputed]
-                position[last] = p
-                position[cell] = -1
+                n_disputed = _unlist(cells[k], disputed, table, n_disputed, position)
         return n_disputed
     kept = 0
     for k in range(n_disputed):

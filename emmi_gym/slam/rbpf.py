@@ -12,7 +12,8 @@ has moved far enough (GMapping's linearUpdate / angularUpdate):
 3. weight by the proposal's normaliser (the scan likelihood over beams decimated to
    ``likelihood_beam_spacing``), in log space, tempered by ``revisit_exponent`` for the
    beams that see a place again after ``revisit_gap`` updates (``revisits``: where a loop
-   closes) and by ``likelihood_exponent`` for the rest;
+   closes; as if at most ``revisit_beams`` of them did) and by ``likelihood_exponent`` for
+   the rest;
 4. resample (systematic) only when Neff / M < ``resample_threshold``;
 5. insert the scan into each particle's grid (eq. 4, log-odds) and extend its path;
 6. measure the certainty of the particle set (EMMI and the rest).
