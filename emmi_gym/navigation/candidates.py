@@ -96,15 +96,17 @@ def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
     along = np.concatenate([[0.0], np.cumsum(steps)])
     behind = along[-1] - along  # path length from each past pose to the robot
     recent = path[behind < LOOP_MIN_PATH, :2]
-    reachable = {}  # pose index -> travel cost
-    for k in np.flatnonzero(behind >= LOOP_MIN_PATH):
-        if np.min(np.hypot(*(recent - path[k, :2]).T)) >= REVISIT_SPACING:
-            cost = costs.cost_to(path[k, 0], path[k, 1])
-            if MIN_TRAVEL <= cost < np.inf:
-                reachable[k] = cost
-    lengths = costs.route_lengths(path[list(reachable), :2])
-    candidates = [Target("revisit", float(path[k, 0]), float(path[k, 1]), cost, behind[k] / max(length, 0.5), int(k))
-                  for (k, cost), length in zip(reachable.items(), lengths) if behind[k] >= LOOP_RATIO * length]
+    older = np.flatnonzero(behind >= LOOP_MIN_PATH)
+    nearest = np.hypot(path[older, None, 0] - recent[None, :, 0], path[older, None, 1] - recent[None, :, 1]).min(
+        axis=1, initial=np.inf)
+    older = older[nearest >= REVISIT_SPACING]
+    travel = costs.costs_at(*costs.geometry.cell_of(path[older, 0], path[older, 1]))
+    reachable = (MIN_TRAVEL <= travel) & (travel < np.inf)
+    older, travel = older[reachable], travel[reachable]
+    lengths = costs.route_lengths(path[older, :2])
+    candidates = [Target("revisit", float(path[k, 0]), float(path[k, 1]), float(cost), behind[k] / max(length, 0.5),
+                      int(k))
+                  for k, cost, length in zip(older, travel, lengths) if behind[k] >= LOOP_RATIO * length]
     candidates.sort(key=lambda t: (-t.gain, t.travel_cost))
     chosen: list[Target] = []
     for t in candidates:

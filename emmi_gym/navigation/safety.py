@@ -27,9 +27,12 @@ def scan_points(ranges: np.ndarray, angles: np.ndarray, max_range: float, within
     return np.column_stack([r * np.cos(a), r * np.sin(a)])
 
 
+_ARC_TIMES = np.linspace(HORIZON / SUBSTEPS, HORIZON, SUBSTEPS)[None, :]
+
+
 def _arcs(v: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Positions (C, SUBSTEPS) in the robot frame after driving each (v, omega) for t = HORIZON / SUBSTEPS, ..."""
-    t = np.linspace(HORIZON / SUBSTEPS, HORIZON, SUBSTEPS)[None, :]
+    t = _ARC_TIMES
     v, omega = v[:, None], omega[:, None]
     turning = np.abs(omega) > 1e-6
     safe_omega = np.where(turning, omega, 1.0)
