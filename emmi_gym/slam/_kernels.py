@@ -213,17 +213,21 @@ DISPUTED = 1000
 
 
 @nb.njit(cache=True, inline="always")
+def _same_hit(hits, i, first, cell):
+    """Whether grids ``i`` and ``first`` hold the same mean hit point at ``cell``."""
+    return hits[i, cell, 0] == hits[first, cell, 0] and hits[i, cell, 1] == hits[first, cell, 1] and \
+        hits[i, cell, 2] == hits[first, cell, 2]
+
+
+@nb.njit(cache=True, inline="always")
 def _agrees(codes, hits, particles, cell):
     """Whether the grids of ``particles`` hold the same code and the same mean hit point at ``cell``."""
     first = particles[0]
     c0 = codes[first, cell]
     for j in range(1, particles.size):
         i = particles[j]
-        if codes[i, cell] != c0:
+        if codes[i, cell] != c0 or not _same_hit(hits, i, first, cell):
             return False
-        for k in range(3):
-            if hits[i, cell, k] != hits[first, cell, k]:
-                return False
     return True
 
 
@@ -252,9 +256,7 @@ def agreement_of_hits(start, stop, codes, hits, particles, cells, out):
         cell = cells[k]
         out[k] = codes[first, cell]
         for j in range(1, particles.size):
-            i = particles[j]
-            if hits[i, cell, 0] != hits[first, cell, 0] or hits[i, cell, 1] != hits[first, cell, 1] or \
-                    hits[i, cell, 2] != hits[first, cell, 2]:
+            if not _same_hit(hits, particles[j], first, cell):
                 out[k] = DISPUTED
                 break
 
