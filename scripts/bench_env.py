@@ -1,6 +1,6 @@
 """Environment steps per second for each id at default settings, and where the time goes.
 
-    python scripts/bench_env.py [--seconds 20]
+    python scripts/bench_env.py [--seconds 20] [--ids ExploreVelocity-v0 ...]
 
 Single process. For each id: reset (seed 0), then act until ``--seconds`` of time
 inside ``step()`` (random valid waypoint actions; random velocities), counting env
@@ -88,8 +88,9 @@ def bench(env_id: str, seconds: float) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--ids", nargs="+", choices=ENV_IDS, default=list(ENV_IDS), help="which environments")
     args = parser.parse_args()
-    for name in ENV_IDS:
+    for name in args.ids:
         bench(f"emmi_gym/{name}", args.seconds)
 
 

@@ -341,6 +341,30 @@ def test_pooled_map_keeps_thin_walls():
     assert image[10, 3] == 25 and image[0, 0] == 127
 
 
+def test_the_map_image_follows_the_robot_between_filter_updates():
+    """Channel 1 marks the estimated path (128) and the robot (255) at every step, though the map and the
+    path are drawn only when the filter updates: each observation equals one drawn from scratch."""
+    from emmi_gym.env.observation import MapPooling, map_and_path, view_window, with_robot
+
+    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL)
+    obs, _ = env.reset(seed=0)
+    core = env.unwrapped
+    robot_pixels, updates = set(), set()
+    for _ in range(30):
+        obs, *_ = env.step(np.array([1.0, 0.2], dtype=np.float32))
+        pose, path = core.estimated_pose, core.slam.paths[core.slam.best]
+        window = view_window(core.world.bounds, pose, 64, False, 0.0)
+        pooled = MapPooling()(core.expected_map, core.geometry, window, 64)
+        np.testing.assert_array_equal(obs["map"], with_robot(map_and_path(pooled, path, window, 64), pose, window, 64))
+        x0, y0, mpp = window
+        row, col = 63 - int(np.floor((pose[1] - y0) / mpp)), int(np.floor((pose[0] - x0) / mpp))
+        assert obs["map"][1, row, col] == 255
+        robot_pixels.add((row, col))
+        updates.add(core.slam.step)
+    assert len(robot_pixels) > len(updates) > 1  # the robot moved on between updates
+    assert (obs["map"][1] == 128).any()  # the path it left behind
+
+
 def test_the_laser_is_simulated_only_when_the_filter_will_use_it():
     env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL)
     env.reset(seed=0)

@@ -238,7 +238,7 @@ class EmmiEnv(gym.Env):
         if not self._stale:
             return
         self._stale = False
-        self._stale_map_channel = True
+        self._stale_map_image = True
         self._expected = self.slam.expected_map()
         oracle = self._oracle.probabilities()
         # coverage: the reachable free space the scans have swept, read on the oracle map (the same scans at
@@ -313,10 +313,11 @@ class EmmiEnv(gym.Env):
         pose = self.slam.pose_estimate(self.sim.odometry_pose)
         cfg = self.config
         window = obs.view_window(self.world.bounds, pose, cfg.obs_size, cfg.egocentric, cfg.egocentric_extent)
-        if cfg.egocentric or self._stale_map_channel:
-            self._map_channel = self._pooling(self._expected, self.geometry, window, cfg.obs_size)
-            self._stale_map_channel = False
-        image = obs.map_image(self._map_channel, self.slam.paths[self.slam.best], pose, window, cfg.obs_size)
+        if cfg.egocentric or self._stale_map_image:  # the map and the path change only at filter updates
+            map_channel = self._pooling(self._expected, self.geometry, window, cfg.obs_size)
+            self._map_image = obs.map_and_path(map_channel, self.slam.paths[self.slam.best], window, cfg.obs_size)
+            self._stale_map_image = False
+        image = obs.with_robot(self._map_image, pose, window, cfg.obs_size)
         if cfg.observation == "image":
             return image
         observation = {"map": image, "pose": obs.pose_vector(pose, self.world.bounds),

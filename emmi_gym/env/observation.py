@@ -83,30 +83,39 @@ class MapPooling:
         return image.reshape(size, size)
 
 
-def map_image(map_channel: np.ndarray, path: np.ndarray, pose, window, size: int) -> np.ndarray:
-    """(2, size, size) uint8: channel 0 the pooled expected map (see :class:`MapPooling`: 0 free,
-    255 occupied, 127 unknown or outside), channel 1 the estimated path (128) and the robot
-    (255, with a pixel ahead for its heading). Row 0 is the top of the image (north up).
-    """
+def _pixel(x, y, window, size: int) -> tuple[int, int]:
+    """(row, column) of the image pixel holding the point (x, y); row 0 is the top (north up)."""
+    x0, y0, mpp = window
+    return size - 1 - math.floor((y - y0) / mpp), math.floor((x - x0) / mpp)
+
+
+def map_and_path(map_channel: np.ndarray, path: np.ndarray, window, size: int) -> np.ndarray:
+    """(2, size, size) uint8 without the robot: channel 0 the pooled expected map (see :class:`MapPooling`:
+    0 free, 255 occupied, 127 unknown or outside), channel 1 the estimated path (128). Both change only
+    when the filter updates, so the environment keeps this image between updates and draws the robot
+    on a copy (:func:`with_robot`) at every step."""
     x0, y0, mpp = window
     image = np.zeros((2, size, size), dtype=np.uint8)
     image[0] = map_channel
-
-    def pixel(x, y):
-        return (size - 1 - np.floor((np.asarray(y) - y0) / mpp)).astype(int), np.floor((np.asarray(x) - x0) / mpp).astype(int)
-
     if len(path):
-        pr, pc = pixel(path[:, 0], path[:, 1])
-        ok = (pr >= 0) & (pr < size) & (pc >= 0) & (pc < size)
-        image[1][pr[ok], pc[ok]] = PATH_PIXEL
-    r, c = pixel(pose[0], pose[1])
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            if 0 <= r + dr < size and 0 <= c + dc < size:
-                image[1][r + dr, c + dc] = ROBOT_PIXEL
-    hr, hc = pixel(pose[0] + 2.5 * mpp * math.cos(pose[2]), pose[1] + 2.5 * mpp * math.sin(pose[2]))
+        rows = (size - 1 - np.floor((path[:, 1] - y0) / mpp)).astype(int)
+        cols = np.floor((path[:, 0] - x0) / mpp).astype(int)
+        inside = (rows >= 0) & (rows < size) & (cols >= 0) & (cols < size)
+        image[1][rows[inside], cols[inside]] = PATH_PIXEL
+    return image
+
+
+def with_robot(image: np.ndarray, pose, window, size: int) -> np.ndarray:
+    """A copy of a :func:`map_and_path` image with the robot in channel 1: 255 on the 3 x 3 pixels round
+    its position and on one pixel 2.5 pixels ahead, for its heading."""
+    image = image.copy()
+    robot = image[1]
+    r, c = _pixel(pose[0], pose[1], window, size)
+    robot[max(r - 1, 0):max(r + 2, 0), max(c - 1, 0):max(c + 2, 0)] = ROBOT_PIXEL
+    ahead = 2.5 * window[2]
+    hr, hc = _pixel(pose[0] + ahead * math.cos(pose[2]), pose[1] + ahead * math.sin(pose[2]), window, size)
     if 0 <= hr < size and 0 <= hc < size:
-        image[1][hr, hc] = ROBOT_PIXEL
+        robot[hr, hc] = ROBOT_PIXEL
     return image
 
 
