@@ -404,6 +404,11 @@ def test_a_wall_seen_on_the_way_makes_the_robot_replan():
     em[10:50, 50] = 0.9                                  # a wall at x = 5 m from y = 1 to 5 m
     assert path_obstructed(em, geometry, straight, 0.2)
     assert not path_obstructed(em, geometry, straight, 0.2, skip=8.5)  # only the part past the wall is checked
+    clear = np.full(geometry.shape, 0.1)
+    echoes = np.arange(25, 35), np.full(10, 50)            # the scan sees a wall at x = 5 m the map lacks
+    assert path_obstructed(clear, geometry, straight, 0.2, layer=(*echoes, 0.9))
+    assert not path_obstructed(clear, geometry, straight, 0.2, layer=(*echoes, 0.5))  # a layer below blocking_p
+    assert not path_obstructed(clear, geometry, straight, 0.2, layer=(np.array([5]), np.array([50]), 0.9))  # 2.5 m off
     costs = travel_costs(em, geometry, (1.0, 3.0), 0.2, goal_xy=(9.0, 3.0))
     detour = [(1.0, 3.0)] + costs.path_to(9.0, 3.0)
     assert not path_obstructed(em, geometry, detour, 0.2)

@@ -1,5 +1,6 @@
 """The RBPF behaves as a grid SLAM should, and as the paper's figures say."""
 
+import copy
 import numpy as np
 import pytest
 from hypothesis import given
@@ -237,8 +238,12 @@ def test_incremental_emmi_equals_a_full_recomputation(seed):
         full = certainty.emmi(maps.codes, w, lut=lut)
         assert certainty.emmi_of_parts(maps.disputed_codes(), w, maps.agreed_counts, lut=lut) == pytest.approx(
             full, rel=1e-12, abs=1e-12)
-        np.testing.assert_allclose(maps.expected_map(w), certainty.expected_map(maps.codes, w, lut=lut),
-                                   rtol=0, atol=1e-12)
+        kept = maps.expected_map(w)
+        np.testing.assert_allclose(kept, certainty.expected_map(maps.codes, w, lut=lut), rtol=0, atol=1e-12)
+        whole = copy.deepcopy(maps)
+        whole._forget_expected_map()
+        np.testing.assert_array_equal(kept, whole.expected_map(w))  # kept up to date = made whole, bit for bit
+        assert not kept.flags.writeable
         np.testing.assert_array_equal(maps.coarse, [[[int((g[r:r + 2, c:c + 2] > 0).sum()) for c in range(0, g.shape[1], 2)]
                                                      for r in range(0, g.shape[0], 2)] for g in maps.codes])
     assert 0 < maps.disputed_cells.size < maps.codes[0].size

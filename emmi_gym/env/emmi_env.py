@@ -239,7 +239,7 @@ class EmmiEnv(gym.Env):
             return
         self._stale = False
         self._stale_map_image = True
-        self._expected = self.slam.expected_map()
+        self._expected = self.slam.expected_map().copy()  # as of this refresh (the filter's own changes)
         oracle = self._oracle.probabilities()
         # coverage: the reachable free space the scans have swept, read on the oracle map (the same scans at
         # the true poses), so that it measures exploration and not how well the estimated map lines up

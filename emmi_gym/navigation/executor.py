@@ -43,7 +43,7 @@ class Robot(Protocol):
 
     def pose_estimate(self) -> np.ndarray: ...
     def scan(self) -> np.ndarray: ...
-    def expected_map(self) -> np.ndarray: ...
+    def expected_map(self) -> np.ndarray: ...  # may be read-only: the executor copies what it changes
     def step(self, v: float, omega: float) -> bool: ...  # one control step; True if it collided
     def out_of_time(self) -> bool: ...
 
@@ -74,7 +74,7 @@ class MacroActionExecutor:
         only cells of p > ``RECOVERY_BLOCKING_P`` as obstacles (a recovery, as move_base clears its
         costmap: a ghost wall of particles that disagree can shut the robot in a slot of its map)."""
         pose = robot.pose_estimate()
-        planning_map = self.with_scan_layer(robot, expected.copy(), pose)
+        planning_map = with_scan_layer(expected.copy(), self.scan_layer(robot, pose))
         for self.blocking_p in (BLOCKING_P, RECOVERY_BLOCKING_P):
             self.costs = travel_costs(planning_map, self.geometry, pose[:2], self.limits.radius,
                                       blocking_p=self.blocking_p)
@@ -130,16 +130,15 @@ class MacroActionExecutor:
                                     within=lim.max_speed * safety.HORIZON + 1.0)
         return safety.safe_command(v, omega, points, lim.radius, lim.max_speed, lim.max_turn_rate)
 
-    def with_scan_layer(self, robot: Robot, expected: np.ndarray, pose) -> np.ndarray:
-        """``expected`` (changed in place) with the live scan's echoes within ``SCAN_LAYER_RANGE`` marked
-        as obstacles (``SCAN_LAYER_P``) at ``pose``: a costmap's obstacle layer over the map."""
+    def scan_layer(self, robot: Robot, pose) -> tuple[np.ndarray, np.ndarray]:
+        """The cells (rows, columns) of the live scan's echoes within ``SCAN_LAYER_RANGE`` at ``pose``: a
+        costmap's obstacle layer, laid over the map with :func:`with_scan_layer`."""
         points = safety.scan_points(robot.scan(), self.limits.beam_angles, self.limits.max_range, SCAN_LAYER_RANGE)
         cos, sin = np.cos(pose[2]), np.sin(pose[2])
         rows, cols = self.geometry.cell_of(pose[0] + cos * points[:, 0] - sin * points[:, 1],
                                            pose[1] + sin * points[:, 0] + cos * points[:, 1])
         inside = self.geometry.inside(rows, cols)
-        expected[rows[inside], cols[inside]] = np.maximum(expected[rows[inside], cols[inside]], SCAN_LAYER_P)
-        return expected
+        return rows[inside], cols[inside]
 
     def _follower(self, waypoints) -> WaypointFollower:
         return WaypointFollower(waypoints, self.limits.max_speed, self.limits.max_turn_rate, tolerance=0.3)
@@ -147,14 +146,22 @@ class MacroActionExecutor:
     def _replanned(self, robot: Robot, follower: WaypointFollower, pose, target: Target) -> WaypointFollower | None:
         """``follower`` if the rest of its path is still clear, else one on a new path to ``target`` (None
         if it cannot be reached any more), on the expected map plus the scan's obstacle layer."""
-        expected = self.with_scan_layer(robot, robot.expected_map(), pose)
+        expected, layer = robot.expected_map(), self.scan_layer(robot, pose)  # the map read, not copied
         radius = self.limits.radius
         if not path_obstructed(expected, self.geometry, [tuple(pose[:2])] + follower.remaining, radius,
                                skip=radius + KEEP_OUT_MARGIN, horizon=self.limits.max_range,
-                               blocking_p=self.blocking_p):
+                               blocking_p=self.blocking_p, layer=(*layer, SCAN_LAYER_P)):
             return follower
-        costs = travel_costs(expected, self.geometry, pose[:2], radius, goal_xy=(target.x, target.y),
-                             blocking_p=self.blocking_p)
+        costs = travel_costs(with_scan_layer(expected.copy(), layer), self.geometry, pose[:2], radius,
+                             goal_xy=(target.x, target.y), blocking_p=self.blocking_p)
         if not np.isfinite(costs.cost_to(target.x, target.y)):
             return None
         return self._follower(costs.path_to(target.x, target.y))
+
+
+def with_scan_layer(expected: np.ndarray, layer: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """``expected`` (changed in place) with the cells of ``layer`` (rows, columns; see
+    :meth:`MacroActionExecutor.scan_layer`) at least ``SCAN_LAYER_P``: the obstacle layer over the map."""
+    rows, cols = layer
+    expected[rows, cols] = np.maximum(expected[rows, cols], SCAN_LAYER_P)
+    return expected

@@ -170,11 +170,14 @@ def _clipped_cell(geometry: GridGeometry, xy) -> tuple[int, int]:
 
 
 def path_obstructed(expected_map: np.ndarray, geometry: GridGeometry, polyline, robot_radius: float,
-                    skip: float = 0.0, horizon: float = math.inf, blocking_p: float = BLOCKING_P) -> bool:
+                    skip: float = 0.0, horizon: float = math.inf, blocking_p: float = BLOCKING_P,
+                    layer=None) -> bool:
     """Whether an obstacle (p > ``blocking_p``) now lies closer than the planner's keep-out distance
     to the polyline of (x, y) points, between ``skip`` metres along it (where the robot is) and
     ``skip + horizon`` (what the sensor can have changed, as a local costmap's window: the cost then
-    does not grow with the path's length, which a wildly wrong pose estimate can make kilometres)."""
+    does not grow with the path's length, which a wildly wrong pose estimate can make kilometres).
+    ``layer`` (rows, columns, p): cells read as at least p, as if laid over the map (the scan's
+    obstacle layer), without copying the map to lay them."""
     points = np.asarray(polyline, dtype=np.float64)
     if len(points) < 2:
         return False
@@ -190,4 +193,9 @@ def path_obstructed(expected_map: np.ndarray, geometry: GridGeometry, polyline, 
     disk = (dr * dr + dc * dc) * res * res < (robot_radius + KEEP_OUT_MARGIN) ** 2
     r = np.clip(rows[:, None] + dr[disk][None, :], 0, geometry.rows - 1)
     c = np.clip(cols[:, None] + dc[disk][None, :], 0, geometry.cols - 1)
-    return bool(np.any(expected_map[r, c] > blocking_p))
+    if np.any(expected_map[r, c] > blocking_p):
+        return True
+    if layer is None or not layer[2] > blocking_p:
+        return False
+    layer_rows, layer_cols, _ = layer
+    return bool(np.isin(r * geometry.cols + c, layer_rows * geometry.cols + layer_cols).any())

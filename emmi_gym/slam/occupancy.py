@@ -63,10 +63,10 @@ class ParticleMaps:
     """
 
     #: Bytes a cell takes: per particle its code, mean hit, share of a coarse count and (when every
-    #: cell is disputed) its row in the disputed cells' table; shared, its agreement status and list
-    #: positions; per insertion thread, its stamp and touched list.
+    #: cell is disputed) its row in the disputed cells' table; shared, its agreement status, list
+    #: positions and expected map; per insertion thread, its stamp and touched list.
     BYTES_PER_CELL_PARTICLE = 6
-    BYTES_PER_CELL = 10
+    BYTES_PER_CELL = 18
     BYTES_PER_CELL_THREAD = 12
     #: Rows the disputed cells' table starts with.
     TABLE_ROWS = 4096
@@ -101,6 +101,9 @@ class ParticleMaps:
         self._table = np.empty((min(self.TABLE_ROWS, geometry.rows * geometry.cols), n_particles), dtype=np.int8)
         self._n_disputed = 0
         self._scratch: list[_InsertionScratch] = []
+        self._expected: np.ndarray | None = None  # the expected map as of the last expected_map() call
+        self._changed: list[np.ndarray] = []  # cells whose agreement may have changed since that call
+        self._n_changed = 0
 
     @property
     def n_particles(self) -> int:
@@ -158,6 +161,21 @@ class ParticleMaps:
         self._n_disputed = _kernels.record_agreement(cells, agreement, rows, _flat(self.status), self.agreed_counts,
                                                      self._disputed, self._table, self._n_disputed,
                                                      _flat(self._position))
+        self._note_changed(cells)
+
+    def _note_changed(self, cells: np.ndarray) -> None:
+        """Remember ``cells`` (flat indices) as ones whose agreement may have changed, for the kept expected
+        map; past a grid's worth of them, drop that map instead (the next call makes it whole)."""
+        if self._expected is None:
+            return
+        self._n_changed += cells.size
+        if self._n_changed > self.status.size:
+            self._forget_expected_map()
+        else:
+            self._changed.append(cells.copy())  # a view of scratch memory that the next scan reuses
+
+    def _forget_expected_map(self) -> None:
+        self._expected, self._changed, self._n_changed = None, [], 0
 
     def _reserve(self, n_rows: int) -> None:
         """Room for ``n_rows`` rows in the disputed cells' table (at most one per cell): doubled as needed."""
@@ -199,16 +217,33 @@ class ParticleMaps:
         self._n_disputed = _kernels.unlist_agreed(cells, agreement, _flat(self.status), self.agreed_counts,
                                                   self._disputed, self._table, self._n_disputed,
                                                   _flat(self._position))
+        self._note_changed(cells)
 
     def expected_map(self, weights: np.ndarray) -> np.ndarray:
         """EM, eq. (6), (H, W) float64, for normalised ``weights``: an agreed cell's own probability, the
-        weighted average over the disputed cells."""
+        weighted average over the disputed cells.
+
+        The map is kept from call to call: a call brings up to date the cells whose agreement changed
+        since the last one and the disputed cells, so its cost follows what the scans touched, not the
+        grid's extent. What it returns is a read-only view of that map, which the next call changes:
+        copy it to keep or to modify it.
+        """
         table = self.cell_codes.probability
-        em = table[np.where(self.status == _kernels.DISPUTED, 0, self.status).astype(np.int64) + 128]
+        if self._expected is None:
+            self._expected = table[np.where(self.status == _kernels.DISPUTED, 0, self.status).astype(np.int64) + 128]
+        else:
+            em, status = self._expected.reshape(-1), _flat(self.status)
+            for cells in self._changed:
+                codes = status[cells]
+                agreed = codes != _kernels.DISPUTED
+                em[cells[agreed]] = table[codes[agreed] + 128]
+        self._changed, self._n_changed = [], 0
         if self._n_disputed:
-            em.reshape(-1)[self.disputed_cells] = certainty.expected_map_of_cells(self.disputed_codes(), weights,
-                                                                                 lut=table)
-        return em
+            self._expected.reshape(-1)[self.disputed_cells] = certainty.expected_map_of_cells(
+                self.disputed_codes(), weights, lut=table)
+        view = self._expected.view()
+        view.flags.writeable = False
+        return view
 
     def probabilities(self, particle: int) -> np.ndarray:
         """Occupancy probabilities (H, W) of one particle's grid."""
@@ -239,6 +274,7 @@ class ParticleMaps:
         self.agreed_counts[128] += added
         rows, cols = np.divmod(self.disputed_cells.astype(np.int64), g.cols)
         self.status = np.pad(self.status, pad[1:])
+        self._forget_expected_map()
         self._position = np.pad(self._position, pad[1:], constant_values=-1)
         for part in self._scratch:
             part.grow(pad[1:])

@@ -135,7 +135,9 @@ class RBPF:
         return compose_local(base, local_delta(self._last_odometry, np.asarray(odometry_pose, dtype=np.float64)))
 
     def expected_map(self) -> np.ndarray:
-        """EM, eq. (6): probability grid (H, W), averaged over the cells the particles dispute only."""
+        """EM, eq. (6): probability grid (H, W), averaged over the cells the particles dispute only; kept up to
+        date from call to call (:meth:`ParticleMaps.expected_map`): a read-only view that the next call
+        changes, to copy if kept or modified."""
         return self.maps.expected_map(self.weights)
 
     def best_map(self) -> np.ndarray:
