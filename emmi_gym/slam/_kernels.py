@@ -385,22 +385,21 @@ def resample_rows(start, stop, table, parents, cells, candidates):
 
 
 @nb.njit(cache=True, nogil=True)
-def resample_cells(start, stop, codes, hits, coarse, block, width, cells, parents):
-    """Particle i in [start, stop) takes particle ``parents[i]``'s code and mean hit point at each of
-    ``cells`` (flat indices, increasing), keeping the occupied-cell counts per block ``coarse``
-    current.
+def resample_cells(start, stop, codes, hits, coarse, block, width, cells, dead, parents):
+    """Each particle i of ``dead[start:stop]`` takes particle ``parents[i]``'s code and mean hit point at
+    each of ``cells`` (flat indices, increasing), keeping the occupied-cell counts per block
+    ``coarse`` current.
 
     The grids come as flat views (``codes`` (M, N), ``hits`` (M, N, 3), rows of ``width``
     cells): a cell's row and column are computed only where its occupied state flips.
     ``parents`` keeps survivors in place (``parents[parents[i]] == parents[i]``), so a source
     is never overwritten: each dead particle's grid is filled from its parent's, grid by grid
-    in memory order, and chunks of particles may run on parallel threads. Elsewhere every
+    in memory order, and chunks of the dead particles (split among them, not among all
+    particles: the dead are not spread evenly) may run on parallel threads. Elsewhere every
     grid already holds the same values, so nothing else needs copying.
     """
-    for i in range(start, stop):
+    for i in dead[start:stop]:
         p = parents[i]
-        if p == i:
-            continue
         source, target = codes[p], codes[i]
         source_hits, target_hits, target_coarse = hits[p], hits[i], coarse[i]
         for k in range(cells.size):

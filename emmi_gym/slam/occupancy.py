@@ -202,8 +202,9 @@ class ParticleMaps:
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
         cells = _kernels.sorted_cells(self.disputed_cells)  # the copies go through each grid in memory order
-        run_in_chunks(_kernels.resample_cells, self.n_particles, *self._flat_grids(), self.coarse, self.block,
-                      self.geometry.cols, cells, parents)
+        dead = np.flatnonzero(parents != np.arange(self.n_particles))
+        run_in_chunks(_kernels.resample_cells, dead.size, *self._flat_grids(), self.coarse, self.block,
+                      self.geometry.cols, cells, dead, parents)
         self.counts = self.counts[parents]
         candidates = np.empty(self._n_disputed, dtype=np.int32)
         chunks = chunk_bounds(self._n_disputed, MIN_CELLS_PER_THREAD)
