@@ -13,11 +13,11 @@ filter then runs over the drive on a 60 m x 60 m grid round the building, its ke
 one thread per core (``--threads`` sets how many). It prints the median update (wall
 time) with its phases and the median CPU time of an update over all threads (the first
 10 updates, numba loading, are not timed, and a short warm-up run loads the resampling's
-kernels), the longest and median resampling, and the ATE of the best particle's path
-against the truth (unaligned: the filter starts at the true start pose). ``--slam`` overrides
-``RBPFConfig`` fields; with several ``--filter-seeds`` (the filter's own random draws; the timings
-are the first one's) it also prints each seed's ATE and resamplings and their median: one run
-says little about a change to the weights.
+kernels), the longest and median resampling (and the longest one's phases), and the ATE of
+the best particle's path against the truth (unaligned: the filter starts at the true start
+pose). ``--slam`` overrides ``RBPFConfig`` fields; with several ``--filter-seeds`` (the filter's
+own random draws; the timings are the first one's) it also prints each seed's ATE and
+resamplings and their median: one run says little about a change to the weights.
 """
 
 from __future__ import annotations
@@ -55,18 +55,20 @@ def tour(data: Path, metres: float, spacing: float = 1.0) -> list[tuple[float, f
 
 def run(rec, angles, particles: int, resolution: float, geometry: GridGeometry, scans: int | None = None,
         seed: int = 1, **options):
-    """The filter (random draws from ``seed``) over the first ``scans`` of the drive: its updates' metrics
-    and the ATE of its best path."""
+    """The filter (random draws from ``seed``) over the first ``scans`` of the drive: its updates' metrics,
+    the ATE of its best path, and each resampling's phases (``ParticleMaps.resample_ms``)."""
     slam = RBPF(RBPFConfig(particles=particles, resolution=resolution, **options), max_range=LASER.max_range,
                 geometry=geometry)
     slam.reset(rec.odometry_poses[0], np.random.default_rng(seed))
-    rows, truth = [], []
+    rows, truth, resamplings = [], [], []
     for pose, true_pose, ranges in itertools.islice(zip(rec.odometry_poses, rec.true_poses, rec.scans), scans):
         metrics = slam.process(pose, ranges, angles)
         if metrics is not None:
+            if metrics.resampled:
+                resamplings.append(dict(slam.maps.resample_ms, total=metrics.phase_ms["resampling"]))
             rows.append(metrics)
             truth.append(true_pose)
-    return rows, absolute_trajectory_error(slam.paths[slam.best], truth, align=False)
+    return rows, absolute_trajectory_error(slam.paths[slam.best], truth, align=False), resamplings
 
 
 def main() -> None:
@@ -100,12 +102,13 @@ def main() -> None:
     run(rec, LASER.angles, args.particles, args.resolution, geometry, scans=100,
         **dict(options, resample_threshold=1.0))  # load kernels
     t0 = time.perf_counter()
-    rows, ate = run(rec, LASER.angles, args.particles, args.resolution, geometry, seed=args.filter_seeds[0],
-                    **options)
+    rows, ate, phases_of_resamplings = run(rec, LASER.angles, args.particles, args.resolution, geometry,
+                                           seed=args.filter_seeds[0], **options)
     wall = time.perf_counter() - t0
     timed = rows[10:]
     phases = {k: float(np.median([r.phase_ms[k] for r in timed])) for k in timed[0].phase_ms}
     resamplings = [r.phase_ms["resampling"] for r in rows if r.resampled]
+    longest = max(phases_of_resamplings, key=lambda laps: laps["total"], default=None)
     print(f"RBPF, {args.particles} particles, {LASER.n_beams} beams over 180 deg to {LASER.max_range:g} m, "
           f"{args.resolution:g} m cells, 60 m x 60 m grid, overrides {args.slam}: {len(rows)} updates in "
           f"{wall:.1f} s")
@@ -116,10 +119,13 @@ def main() -> None:
     print(f"resamplings {len(resamplings)}, longest {max(resamplings, default=0.0):.2f} ms, median "
           f"{np.median(resamplings) if resamplings else 0.0:.2f} ms; ATE of the best path {ate:.3f} m "
           f"(filter seed {args.filter_seeds[0]})")
+    if longest is not None:
+        print("the longest resampling's phases (ms): " +
+              ", ".join(f"{k} {v:.2f}" for k, v in longest.items() if k != "total"))
     if len(args.filter_seeds) > 1:
         runs = [(ate, len(resamplings))]
         for seed in args.filter_seeds[1:]:
-            seed_rows, seed_ate = run(rec, LASER.angles, args.particles, args.resolution, geometry, seed=seed,
+            seed_rows, seed_ate, _ = run(rec, LASER.angles, args.particles, args.resolution, geometry, seed=seed,
                                       **options)
             runs.append((seed_ate, sum(r.resampled for r in seed_rows)))
         print("filter seeds " + ", ".join(f"{s}: ATE {a:.3f} m ({n} resamplings)"

@@ -230,6 +230,8 @@ def test_incremental_emmi_equals_a_full_recomputation(seed):
             np.testing.assert_array_equal(maps.codes, before[0][parents])
             np.testing.assert_array_equal(maps.hits, before[1][parents])
             np.testing.assert_array_equal(maps.counts, before[2][parents])
+            assert list(maps.resample_ms) == ["order", "copies", "table", "agreement", "unlisting"]
+            assert all(ms >= 0.0 for ms in maps.resample_ms.values())
         if step == 3:
             maps.grow_to_contain(-0.5, -0.5, 7.5, 6.5, chunk=1.0)
         assert_agreement_is_exact(maps)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -101,6 +102,9 @@ class ParticleMaps:
         self._table = np.empty((min(self.TABLE_ROWS, geometry.rows * geometry.cols), n_particles), dtype=np.int8)
         self._n_disputed = 0
         self._scratch: list[_InsertionScratch] = []
+        #: The last resampling's phases (ms): ordering the disputed cells, copying the dead particles'
+        #: cells, moving the table's columns, comparing mean hit points where codes now agree, unlisting.
+        self.resample_ms: dict[str, float] = {}
         self._expected: np.ndarray | None = None  # the expected map as of the last expected_map() call
         self._changed: list[np.ndarray] = []  # cells whose agreement may have changed since that call
         self._n_changed = 0
@@ -194,31 +198,39 @@ class ParticleMaps:
         place (:func:`~emmi_gym.slam.resampling.survivors_in_place`): only the dead particles'
         disputed cells are copied (elsewhere all grids already hold the same values), the
         disputed cells' table takes the same copies, and the agreement is re-derived among the
-        survivors for the cells whose codes now agree (the others stay disputed)."""
+        survivors for the cells whose codes now agree (the others stay disputed). How long each
+        phase took is left in :attr:`resample_ms`."""
         parents = np.ascontiguousarray(parents, dtype=np.int64)
         if parents.shape != (self.n_particles,) or not np.all((parents >= 0) & (parents < self.n_particles)):
             raise ValueError(f"parents must be {self.n_particles} particle indices, got {parents!r:.200}")
         if not np.array_equal(parents[parents], parents):
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
+        clock = _PhaseClock()
         cells = _kernels.sorted_cells(self.disputed_cells)  # the copies go through each grid in memory order
+        clock.lap("order")
         dead = np.flatnonzero(parents != np.arange(self.n_particles))
         run_in_chunks(_kernels.resample_cells, dead.size, *self._flat_grids(), self.coarse, self.block,
                       self.geometry.cols, cells, dead, parents)
         self.counts = self.counts[parents]
+        clock.lap("copies")
         candidates = np.empty(self._n_disputed, dtype=np.int32)
         chunks = chunk_bounds(self._n_disputed, MIN_CELLS_PER_THREAD)
         found = run_calls([(_kernels.resample_rows, start, stop, self._table, parents, self._disputed, candidates)
                            for start, stop in chunks])
+        clock.lap("table")
         cells = _kernels.sorted_cells(np.concatenate([candidates[start:start + n]
                                                       for (start, _), n in zip(chunks, found)]))
         agreement = np.empty(cells.size, dtype=np.int16)
         run_in_chunks(_kernels.agreement_of_hits, cells.size, *self._flat_grids(), np.unique(parents), cells,
                       agreement, min_chunk=MIN_CELLS_PER_THREAD)
+        clock.lap("agreement")
         self._n_disputed = _kernels.unlist_agreed(cells, agreement, _flat(self.status), self.agreed_counts,
                                                   self._disputed, self._table, self._n_disputed,
                                                   _flat(self._position))
         self._note_changed(cells)
+        clock.lap("unlisting")
+        self.resample_ms = clock.laps
 
     def expected_map(self, weights: np.ndarray) -> np.ndarray:
         """EM, eq. (6), (H, W) float64, for normalised ``weights``: an agreed cell's own probability, the
@@ -309,3 +321,16 @@ class _InsertionScratch:
     def grow(self, pad) -> None:
         self.stamp = np.pad(self.stamp, pad)
         self.touched = np.empty(self.stamp.size, dtype=np.int32)
+
+
+class _PhaseClock:
+    """Wall time of consecutive phases, in milliseconds."""
+
+    def __init__(self):
+        self.laps: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.laps[name] = 1e3 * (now - self._last)
+        self._last = now
