@@ -133,7 +133,9 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
-    assert process.returncode == 130, err[-2000:]
+    # returncode -2 (the process killed by a SIGINT it did not handle) with nothing on stderr was seen once in CI:
+    # what it had printed tells when the signal came
+    assert process.returncode == 130, f"returncode {process.returncode}; stdout:\n{out[-2000:]}\nstderr:\n{err[-2000:]}"
     assert "interrupted at" in out and "continue with --resume" in out and "Traceback" not in err
     newest = latest_checkpoint(run)
     with zipfile.ZipFile(newest) as archive:
