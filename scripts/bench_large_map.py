@@ -126,7 +126,7 @@ def main() -> None:
         runs = [(ate, len(resamplings))]
         for seed in args.filter_seeds[1:]:
             seed_rows, seed_ate, _ = run(rec, LASER.angles, args.particles, args.resolution, geometry, seed=seed,
-                                      **options)
+                                         **options)
             runs.append((seed_ate, sum(r.resampled for r in seed_rows)))
         print("filter seeds " + ", ".join(f"{s}: ATE {a:.3f} m ({n} resamplings)"
                                           for s, (a, n) in zip(args.filter_seeds, runs)))
