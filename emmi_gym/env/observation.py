@@ -83,10 +83,11 @@ class MapPooling:
         return image.reshape(size, size)
 
 
-def _pixel(x, y, window, size: int) -> tuple[int, int]:
-    """(row, column) of the image pixel holding the point (x, y); row 0 is the top (north up)."""
+def _pixel(x, y, window, size: int):
+    """(row, column) of the image pixels holding the points (x, y), arrays or scalars; row 0 is the top
+    (north up)."""
     x0, y0, mpp = window
-    return size - 1 - math.floor((y - y0) / mpp), math.floor((x - x0) / mpp)
+    return (size - 1 - np.floor((y - y0) / mpp)).astype(int), np.floor((x - x0) / mpp).astype(int)
 
 
 def map_and_path(map_channel: np.ndarray, path: np.ndarray, window, size: int) -> np.ndarray:
@@ -94,12 +95,10 @@ def map_and_path(map_channel: np.ndarray, path: np.ndarray, window, size: int) -
     0 free, 255 occupied, 127 unknown or outside), channel 1 the estimated path (128). Both change only
     when the filter updates, so the environment keeps this image between updates and draws the robot
     on a copy (:func:`with_robot`) at every step."""
-    x0, y0, mpp = window
     image = np.zeros((2, size, size), dtype=np.uint8)
     image[0] = map_channel
     if len(path):
-        rows = (size - 1 - np.floor((path[:, 1] - y0) / mpp)).astype(int)
-        cols = np.floor((path[:, 0] - x0) / mpp).astype(int)
+        rows, cols = _pixel(path[:, 0], path[:, 1], window, size)
         inside = (rows >= 0) & (rows < size) & (cols >= 0) & (cols < size)
         image[1][rows[inside], cols[inside]] = PATH_PIXEL
     return image
