@@ -17,9 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 #: A goal counts as reached when the estimated pose is this close (m, along the free space),
-#: or this near when no candidate target leads nearer.
+#: or within the laser's range when no candidate target leads nearer (see ``advance``).
 GOAL_RADIUS = 2.0
-GOAL_NEAR = 4.0
 #: How far (m) round a target the true free space is searched for its distance to a goal
 #: (the map drifts from the truth by decimetres).
 TARGET_SNAP = 0.5
@@ -166,8 +165,11 @@ class GoalSequencePolicy:
         """Count the goals reached (in order) and return the phase.
 
         A goal is reached when the estimated pose is within ``GOAL_RADIUS`` of it along the
-        free space, or within ``GOAL_NEAR`` when no candidate target would bring it nearer
-        (a goal in an area already seen, such as a dead end, gets no target of its own).
+        free space, or within the laser's range when no candidate target would bring it
+        nearer: a goal in an area already seen, such as a dead end, gets no target of its
+        own, and no action can take the robot nearer. (With a fixed 4 m the robot could stand
+        4.6 m from a dead end it had seen, its estimate 0.8 m behind the truth, and wander
+        off for good: the 10-particle demo's seed 0 under A.)
         """
         core = _core(env)
         pose = core.estimated_pose
@@ -176,7 +178,7 @@ class GoalSequencePolicy:
             here = self._distance_from(core, field, pose)
             targets = [t for t, ok in zip(core.targets, core.action_masks()) if ok and t is not None]
             nearer = any(self._distance_from(core, field, t.xy) < here for t in targets)
-            if not (here <= GOAL_RADIUS or (here <= GOAL_NEAR and not nearer)):
+            if not (here <= GOAL_RADIUS or (here <= core.laser_config.max_range and not nearer)):
                 break
             self.phase += 1
         return self.phase
