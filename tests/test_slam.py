@@ -190,6 +190,26 @@ def test_fig4_mi_is_nearly_resolution_independent_while_entropy_grows():
     assert all(a < b for a, b in zip(entropy, entropy[1:])), entropy
 
 
+def test_a_far_wall_seen_at_a_slant_keeps_its_cells():
+    """Forty scans of a wall 3 m to the side, its cells between 8 and 30 m ahead seen at 6-20 degrees,
+    ranges with 2 cm of noise. Sub-rays between two beams reach only as far as the nearer one: the
+    wall keeps 77% of its cells occupied, 15% freed (sub-rays interpolated between the two end points
+    reached past the wall wherever the noise put it further, and freed 55%, leaving 44% occupied)."""
+    rng = np.random.default_rng(0)
+    config = RBPFConfig()
+    geometry = GridGeometry.covering(-1.0, -1.0, 40.0, 4.0, 0.05)
+    maps = ParticleMaps(geometry, 1, CellCodes.from_config(config))
+    angles = np.radians(np.arange(5.0, 175.0, 0.5))
+    wall_y = 3.001
+    for k in range(40):
+        pose = np.array([0.1 * k, 0.0, 0.0])
+        ranges = (wall_y - pose[1]) / np.sin(angles) + rng.normal(0.0, 0.02, angles.size)
+        maps.insert(pose[None], np.minimum(ranges, 30.0), angles, 30.0, 0.0)
+    row, (first, last) = geometry.cell_of(0.0, wall_y)[0], geometry.cell_of(np.array([8.0, 30.0]), wall_y)[1]
+    wall = maps.codes[0][row, first:last]
+    assert np.mean(wall < 0) < 0.3 and np.mean(wall > 0) > 0.6, (np.mean(wall < 0), np.mean(wall > 0))
+
+
 # ------------------------------------------------------------------ machinery
 
 

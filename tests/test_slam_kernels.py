@@ -41,8 +41,9 @@ def crossed_cells(x0, y0, x1, y1):
     return [(r, c) for _, r, c in sorted(cells)]
 
 
-def twin_rays(ranges, angles, gaps, max_range, free_range, jump):
-    """(angle, length, kind) of every insertion ray: each beam and the sub-rays across its gap."""
+def twin_rays(ranges, angles, gaps, max_range, free_range):
+    """(angle, length, kind) of every insertion ray: each beam and the sub-rays across its gap, as long
+    as the nearer of the two beams."""
     n = len(ranges)
     lengths = [r if 0 < r < max_range else (free_range if r > 0 else 0.0) for r in ranges]
     rays = []
@@ -51,16 +52,11 @@ def twin_rays(ranges, angles, gaps, max_range, free_range, jump):
         count = 1
         if gaps[b] > 0:
             count = min(16, max(1, math.ceil(max(lengths[b], lengths[nxt]) * gaps[b] / RES)))
-        r0, r1 = ranges[b], ranges[nxt]
-        hit0 = 0 < r0 < max_range
-        smooth = hit0 and 0 < r1 < max_range and abs(r0 - r1) <= jump + 0.1 * min(r0, r1)
         for j in range(count):
-            f = j / count
             if j == 0:
-                rays.append((angles[b], lengths[b], K.RAY_HIT if hit0 else K.RAY_FREE))
+                rays.append((angles[b], lengths[b], K.RAY_HIT if 0 < ranges[b] < max_range else K.RAY_FREE))
             else:
-                length = (1 - f) * r0 + f * r1 if smooth else min(lengths[b], lengths[nxt])
-                rays.append((angles[b] + f * gaps[b], length, K.RAY_BOUNDED))
+                rays.append((angles[b] + j / count * gaps[b], min(lengths[b], lengths[nxt]), K.RAY_BOUNDED))
     return rays
 
 
@@ -108,8 +104,8 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     angles = -span / 2 + np.arange(n_beams) * span / (n_beams if full_circle else n_beams - 1)
     gaps = beam_gaps(angles)
     assert (gaps[-1] > 0) == full_circle
-    rays = K.scan_rays(ranges, angles, gaps, 2.0, np.full(n_beams, 0.7), RES, 0.3)
-    want_rays = twin_rays(ranges, angles, gaps, 2.0, 0.7, 0.3)
+    rays = K.scan_rays(ranges, angles, gaps, 2.0, np.full(n_beams, 0.7), RES)
+    want_rays = twin_rays(ranges, angles, gaps, 2.0, 0.7)
     np.testing.assert_allclose(np.column_stack(rays), np.array(want_rays), atol=1e-12)
     expected = twin_insert(codes, poses, want_rays, 17, -8, 100)
     got = codes.copy()

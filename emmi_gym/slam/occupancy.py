@@ -124,7 +124,7 @@ class ParticleMaps:
         return self._table[:self._n_disputed]
 
     def insert(self, poses: np.ndarray, ranges: np.ndarray, angles: np.ndarray, max_range: float,
-               free_range: float, insertion_range: float | None = None, depth_jump: float = 0.3) -> None:
+               free_range: float, insertion_range: float | None = None) -> None:
         """Insert one scan, as its polygon, into every particle's grid at that particle's pose.
 
         ``angles`` must increase; a scan that closes the circle has its last beam joined
@@ -135,8 +135,7 @@ class ParticleMaps:
         g, c = self.geometry, self.cell_codes
         hit_range = max_range if insertion_range is None else min(max_range, insertion_range)
         free_lengths = np.where(ranges >= max_range, min(free_range, hit_range), hit_range)
-        rays = _kernels.scan_rays(ranges, angles, beam_gaps(angles), hit_range, free_lengths, g.resolution,
-                                  depth_jump)
+        rays = _kernels.scan_rays(ranges, angles, beam_gaps(angles), hit_range, free_lengths, g.resolution)
         chunks = chunk_bounds(self.n_particles)
         while len(self._scratch) < len(chunks):
             self._scratch.append(_InsertionScratch(g.shape))
