@@ -191,10 +191,11 @@ def test_fig4_mi_is_nearly_resolution_independent_while_entropy_grows():
 
 
 def test_a_far_wall_seen_at_a_slant_keeps_its_cells():
-    """Forty scans of a wall 3 m to the side, its cells between 8 and 30 m ahead seen at 6-20 degrees,
+    """Forty scans of a wall 3 m to the side, its cells between 8 and 30 m ahead seen at 6-36 degrees,
     ranges with 2 cm of noise. Sub-rays between two beams reach only as far as the nearer one: the
-    wall keeps 77% of its cells occupied, 15% freed (sub-rays interpolated between the two end points
-    reached past the wall wherever the noise put it further, and freed 55%, leaving 44% occupied)."""
+    wall keeps 77% of its cells occupied, 15% freed (sub-rays whose lengths were interpolated between
+    the two ranges reached past the wall wherever the noise put it further, and freed 55%, leaving 44%
+    occupied)."""
     rng = np.random.default_rng(0)
     config = RBPFConfig()
     geometry = GridGeometry.covering(-1.0, -1.0, 40.0, 4.0, 0.05)
