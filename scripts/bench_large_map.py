@@ -107,7 +107,7 @@ def main() -> None:
     wall = time.perf_counter() - t0
     timed = rows[10:]
     phases = {k: float(np.median([r.phase_ms[k] for r in timed])) for k in timed[0].phase_ms}
-    resamplings = [r.phase_ms["resampling"] for r in rows if r.resampled]
+    resamplings = [laps["total"] for laps in phases_of_resamplings]
     longest = max(phases_of_resamplings, key=lambda laps: laps["total"], default=None)
     print(f"RBPF, {args.particles} particles, {LASER.n_beams} beams over 180 deg to {LASER.max_range:g} m, "
           f"{args.resolution:g} m cells, 60 m x 60 m grid, overrides {args.slam}: {len(rows)} updates in "
