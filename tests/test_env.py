@@ -70,11 +70,9 @@ def test_spaces_and_info():
     assert env.observation_space.contains(obs)
     for key in ("emmi", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy", "joint_entropy",
                 "neff", "resampled", "coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate",
-                "collisions", "sim_steps",
-                "reward_components", "rbpf_updates"):
+                "collisions", "sim_steps", "reward_components"):
         assert key in info
-    assert len(info["rbpf_updates"]) > 80  # the drive to the decision point: one row per filter update
-    assert info["rbpf_updates"][-1]["emmi"] == info["emmi"]
+    assert "rbpf_updates" not in info  # only with update_records
     obs, reward, terminated, truncated, info = env.step(frontier_action(env))
     assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage",
                                               "emmi_coverage", "time", "collision"}
@@ -82,9 +80,31 @@ def test_spaces_and_info():
         info["reward_components"]["collision"]
     assert reward == pytest.approx(expected)
     assert info["sim_steps_this_step"] > 10 and info["target_kind"] == "frontier"
-    assert all(set(row) >= {"step", "emmi", "joint_entropy", "neff"} for row in info["rbpf_updates"])
     image = gym.make("emmi_gym/LoopCorridor-v0", observation="image", obs_size=48, **SMALL)
     assert image.observation_space.shape == (2, 48, 48)
+
+
+def test_update_records_list_every_update_and_change_nothing_else():
+    """With update_records every filter update's metrics are in info (measured at each update); without,
+    the certainty is measured once per step: the same episode, the same figures."""
+    runs = []
+    for records in (False, True):
+        env = gym.make("emmi_gym/LoopCorridor-v0", update_records=records, **SMALL)
+        _, info = env.reset(seed=3)
+        steps = [info]
+        for _ in range(2):
+            steps.append(env.step(frontier_action(env))[-1])
+        runs.append((steps, env.unwrapped.slam.step, env.unwrapped.true_path))
+    (lazy, lazy_updates, lazy_path), (eager, eager_updates, eager_path) = runs
+    assert lazy_updates == eager_updates and np.array_equal(lazy_path, eager_path)
+    for a, b in zip(lazy, eager):
+        assert {k: a[k] for k in ("emmi", "pose_entropy", "joint_entropy", "neff", "ate")} == \
+            {k: b[k] for k in ("emmi", "pose_entropy", "joint_entropy", "neff", "ate")}
+        assert b["rbpf_updates"][-1]["emmi"] == b["emmi"]
+        assert all(set(row) >= {"step", "emmi", "joint_entropy", "neff"} for row in b["rbpf_updates"])
+    assert len(eager[0]["rbpf_updates"]) > 80  # the drive to the decision point: one row per filter update
+    steps = [row["step"] for info in eager for row in info["rbpf_updates"]]
+    assert steps == list(range(eager_updates))  # every update once
 
 
 def test_render_rgb_array_and_human():

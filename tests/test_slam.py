@@ -317,6 +317,26 @@ def test_update_policy_waits_for_motion():
     assert slam.process([0.55, 0, 0.55], ranges, angles) is not None  # turned 0.35 rad
 
 
+def test_measuring_later_gives_the_metrics_of_the_last_update():
+    """process(measure=False) leaves the certainty to measure(): the same figures, once per update."""
+    filters = []
+    for _ in range(2):
+        slam = RBPF(RBPFConfig(particles=4), max_range=8.0, geometry=GridGeometry(0.1, -5, -5, 100, 100))
+        slam.reset([0, 0, 0], np.random.default_rng(7))
+        filters.append(slam)
+    eager, lazy = filters
+    with pytest.raises(RuntimeError, match="process"):
+        lazy.measure()
+    angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
+    ranges = 3.0 + 0.5 * np.cos(3 * angles)
+    for x in (0.0, 0.6, 1.2):
+        now = eager.process([x, 0, 0], ranges, angles)
+        assert lazy.process([x, 0, 0], ranges, angles, measure=False) is None
+        later = lazy.measure()
+        assert later is lazy.measure()  # computed once
+        assert now.measures() == later.measures() and now.step == lazy.step - 1
+
+
 def test_bad_input_is_named():
     slam = RBPF(RBPFConfig(particles=2), max_range=8.0)
     with pytest.raises(RuntimeError, match="reset"):

@@ -40,6 +40,10 @@ class EnvConfig:
       running before the first observation (the paper's robot up to its step 65);
       ``"start"`` begins at the start pose.
     - ``reward``: one of :data:`REWARDS`; all are computed and put in ``info``.
+    - ``update_records``: put the metrics of every RBPF update of a step in
+      ``info["rbpf_updates"]`` (a list of rows; the paper's per-update curves, as the A/B
+      experiment draws them). Off, the certainty of the particle set is computed once per
+      step, after its last update, which is all the reward and the observation read.
     - ``time_cost`` per simulator step and ``collision_cost`` per colliding step are
       subtracted whatever the reward, so doing nothing never pays.
     - ``laser``, ``odometry_noise``: a preset name (:mod:`emmi_gym.world.presets`:
@@ -58,6 +62,7 @@ class EnvConfig:
     action_mode: str = option("waypoint", Choice(ACTION_MODES))
     velocity_actions: str = option("continuous", Choice(VELOCITY_ACTIONS))
     reward: str = option("emmi", Choice(REWARDS))
+    update_records: bool = option(False, Boolean())
     reward_scale: float | None = option(None, Maybe(Real(0.0, 1e6, open_lo=True), "the reward's default scale"))
     time_cost: float = option(0.002, Real(0.0, 1e3))
     collision_cost: float = option(0.05, Real(0.0, 1e3))

@@ -216,16 +216,17 @@ class EmmiEnv(gym.Env):
         return result.collided
 
     def _feed(self, odometry_pose, true_pose) -> None:
-        """Give the RBPF a scan when it will use one (the laser is not simulated in between)."""
+        """Give the RBPF a scan when it will use one (the laser is not simulated in between); with
+        ``update_records``, keep the update's metrics for ``info``."""
         if not self.slam.update_due(odometry_pose):
             return
-        metrics = self.slam.process(odometry_pose, self._scan_now(), self._angles, self.sim.time)
+        metrics = self.slam.process(odometry_pose, self._scan_now(), self._angles, self.sim.time,
+                                    measure=self.config.update_records)
+        self._oracle.insert(true_pose, self._scan_now(), self._angles)
+        self._true_at_updates.append(true_pose)
         if metrics is not None:
-            self._oracle.insert(true_pose, self._scan_now(), self._angles)
-            self._metrics = metrics
-            self._true_at_updates.append(true_pose)
             self._new_updates.append(metrics.measures())
-            self._stale = True
+        self._stale = True
 
     @property
     def _angles(self) -> np.ndarray:
@@ -239,6 +240,7 @@ class EmmiEnv(gym.Env):
             return
         self._stale = False
         self._stale_map_image = True
+        self._metrics = self.slam.measure()
         self._expected = self.slam.expected_map().copy()  # as of this refresh (the filter's own changes)
         oracle = self._oracle.probabilities()
         # coverage: the reachable free space the scans have swept, read on the oracle map (the same scans at
@@ -336,7 +338,7 @@ class EmmiEnv(gym.Env):
             "map_accuracy": self._map_accuracy, "oracle_accuracy": self._oracle_accuracy,
             "wall_consistency": self._wall_consistency, "ate": self._ate, "collisions": self.collisions,
             "sim_steps": self.sim_steps, "reward_components": dict(components), "world": self.world.name,
-            "rbpf_updates": self._take_updates(),
+            **({"rbpf_updates": self._take_updates()} if self.config.update_records else {}),
         }
 
     def _take_updates(self) -> list[dict]:

@@ -30,7 +30,8 @@ NEW_AREA_PLACE = "target_b"
 
 @dataclass(frozen=True)
 class ABSettings:
-    """What an A/B run is made of: ``LoopCorridor-v0`` on ``world`` with these options."""
+    """What an A/B run is made of: ``LoopCorridor-v0`` on ``world`` with these options (and the
+    metrics of every filter update, ``update_records``, for the per-update curves)."""
 
     world: str = "loop_corridor"
     particles: int = 15
@@ -39,7 +40,8 @@ class ABSettings:
 
     def make_env(self) -> gym.Env:
         return gym.make("emmi_gym/LoopCorridor-v0", world=self.world, particles=self.particles,
-                        max_decisions=self.max_decisions, coverage_target=1.0, **self.env_options)
+                        max_decisions=self.max_decisions, coverage_target=1.0, update_records=True,
+                        **self.env_options)
 
 
 @dataclass

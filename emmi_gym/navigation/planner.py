@@ -7,6 +7,7 @@ import math
 
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 from scipy import ndimage
 from skimage.graph import MCP_Geometric
@@ -76,23 +77,16 @@ class CostMap:
     def route_lengths(self, xy: np.ndarray) -> np.ndarray:
         """Length in metres of the cheapest route to each point (n, 2); inf where unreachable.
 
-        The cost weighs unknown cells and closeness to walls; this is the distance driven.
-        All routes are walked back along the traceback together, one step per round.
+        The cost weighs unknown cells and closeness to walls; this is the distance driven,
+        summed along the traceback (:func:`_traceback_lengths`).
         """
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         rows, cols = self.geometry.cell_of(xy[:, 0], xy[:, 1])
         lengths = np.full(len(xy), np.inf)
-        reachable = np.isfinite(self.costs_at(rows, cols))
-        lengths[reachable] = 0.0
-        step_lengths = np.hypot(*self.offsets.T) * self.geometry.resolution
-        walking = np.flatnonzero(reachable)
-        r, c = rows[walking] - self.corner[0], cols[walking] - self.corner[1]
-        while walking.size:
-            step = self.traceback[r, c]
-            going = step >= 0
-            walking, r, c, step = walking[going], r[going], c[going], step[going]
-            lengths[walking] += step_lengths[step]
-            r, c = r - self.offsets[step, 0], c - self.offsets[step, 1]
+        reachable = np.flatnonzero(np.isfinite(self.costs_at(rows, cols)))
+        step_lengths = np.hypot(*self.offsets.T.astype(np.float64)) * self.geometry.resolution
+        lengths[reachable] = _traceback_lengths(self.traceback, self.offsets, step_lengths,
+                                                rows[reachable] - self.corner[0], cols[reachable] - self.corner[1])
         return lengths
 
     def _cells_to(self, row: int, col: int) -> list[tuple[int, int]]:
@@ -106,6 +100,23 @@ class CostMap:
             row, col = row - int(self.offsets[step, 0]), col - int(self.offsets[step, 1])
             cells.append((row, col))
         return [(r + r0, c + c0) for r, c in reversed(cells)]
+
+
+@nb.njit(cache=True)
+def _traceback_lengths(traceback, offsets, step_lengths, rows, cols):
+    """For each cell (rows[k], cols[k]) of a window, the summed ``step_lengths`` of the MCP steps that lead
+    back from it to the start (``traceback``: the index into ``offsets`` of the step that reached each
+    cell, -1 at the start)."""
+    lengths = np.zeros(rows.size)
+    for k in range(rows.size):
+        r, c = rows[k], cols[k]
+        step = traceback[r, c]
+        while step >= 0:
+            lengths[k] += step_lengths[step]
+            r -= offsets[step, 0]
+            c -= offsets[step, 1]
+            step = traceback[r, c]
+    return lengths
 
 
 def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, robot_radius: float,

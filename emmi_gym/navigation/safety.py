@@ -10,6 +10,9 @@ radius plus a margin from every scan point.
 
 from __future__ import annotations
 
+import math
+
+import numba as nb
 import numpy as np
 
 HORIZON = 1.0        # s of motion checked ahead
@@ -27,18 +30,7 @@ def scan_points(ranges: np.ndarray, angles: np.ndarray, max_range: float, within
     return np.column_stack([r * np.cos(a), r * np.sin(a)])
 
 
-_ARC_TIMES = np.linspace(HORIZON / SUBSTEPS, HORIZON, SUBSTEPS)[None, :]
-
-
-def _arcs(v: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions (C, SUBSTEPS) in the robot frame after driving each (v, omega) for t = HORIZON / SUBSTEPS, ..."""
-    t = _ARC_TIMES
-    v, omega = v[:, None], omega[:, None]
-    turning = np.abs(omega) > 1e-6
-    safe_omega = np.where(turning, omega, 1.0)
-    x = np.where(turning, v / safe_omega * np.sin(safe_omega * t), v * t)
-    y = np.where(turning, v / safe_omega * (1.0 - np.cos(safe_omega * t)), 0.0)
-    return x, y
+_ARC_TIMES = np.linspace(HORIZON / SUBSTEPS, HORIZON, SUBSTEPS)
 
 
 def safe_command(v: float, omega: float, points: np.ndarray, radius: float, max_speed: float,
@@ -87,6 +79,23 @@ def _turn_away(points: np.ndarray, max_turn_rate: float) -> float:
 
 def _closest_approach(speeds: np.ndarray, turns: np.ndarray, points: np.ndarray) -> np.ndarray:
     """For each command, the smallest distance from the robot's centre to any point along its arc."""
-    x, y = _arcs(speeds, turns)
-    gaps = np.hypot(x[:, :, None] - points[None, None, :, 0], y[:, :, None] - points[None, None, :, 1])
-    return gaps.min(axis=(1, 2))
+    return _closest_approach_kernel(np.asarray(speeds, dtype=np.float64), np.asarray(turns, dtype=np.float64),
+                                    np.ascontiguousarray(points, dtype=np.float64), _ARC_TIMES)
+
+
+@nb.njit(cache=True)
+def _closest_approach_kernel(speeds, turns, points, times):
+    """:func:`_closest_approach` over the poses at ``times`` along each arc (in the robot frame, after driving
+    (v, omega) for t: (v / omega sin(omega t), v / omega (1 - cos(omega t))), or (v t, 0) when not turning)."""
+    lowest = np.full(speeds.size, np.inf)
+    for k in range(speeds.size):
+        v, omega = speeds[k], turns[k]
+        turning = abs(omega) > 1e-6
+        for t in times:
+            x = v / omega * math.sin(omega * t) if turning else v * t
+            y = v / omega * (1.0 - math.cos(omega * t)) if turning else 0.0
+            for p in range(points.shape[0]):
+                gap = math.hypot(x - points[p, 0], y - points[p, 1])
+                if gap < lowest[k]:
+                    lowest[k] = gap
+    return lowest

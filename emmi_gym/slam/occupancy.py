@@ -102,6 +102,7 @@ class ParticleMaps:
         self._table = np.empty((min(self.TABLE_ROWS, geometry.rows * geometry.cols), n_particles), dtype=np.int8)
         self._n_disputed = 0
         self._scratch: list[_InsertionScratch] = []
+        self._gaps: tuple[np.ndarray, np.ndarray] | None = None  # (beam angles, their beam_gaps) of the last scan
         #: The last resampling's phases (ms): ordering the disputed cells, copying the dead particles'
         #: cells, moving the table's columns, comparing mean hit points where codes now agree, unlisting.
         self.resample_ms: dict[str, float] = {}
@@ -135,7 +136,7 @@ class ParticleMaps:
         g, c = self.geometry, self.cell_codes
         hit_range = max_range if insertion_range is None else min(max_range, insertion_range)
         free_lengths = np.where(ranges >= max_range, min(free_range, hit_range), hit_range)
-        rays = _kernels.scan_rays(ranges, angles, beam_gaps(angles), hit_range, free_lengths, g.resolution)
+        rays = _kernels.scan_rays(ranges, angles, self._beam_gaps(angles), hit_range, free_lengths, g.resolution)
         chunks = chunk_bounds(self.n_particles)
         while len(self._scratch) < len(chunks):
             self._scratch.append(_InsertionScratch(g.shape))
@@ -152,6 +153,12 @@ class ParticleMaps:
             scratch[0].n_touched = _kernels.merge_touched(touched, scratch[0].n_touched, scratch[0].stamp, first,
                                                           part.touched, part.n_touched)
         self._refresh(touched[:scratch[0].n_touched], np.arange(self.n_particles))
+
+    def _beam_gaps(self, angles: np.ndarray) -> np.ndarray:
+        """:func:`beam_gaps` of ``angles``, kept from scan to scan while the beam angles stay the same."""
+        if self._gaps is None or not np.array_equal(self._gaps[0], angles):
+            self._gaps = (np.array(angles, dtype=np.float64), beam_gaps(angles))
+        return self._gaps[1]
 
     def _refresh(self, cells: np.ndarray, particles: np.ndarray) -> None:
         """Re-derive the agreement of ``cells`` among the grids of ``particles`` (on the kernel threads),

@@ -16,7 +16,9 @@ has moved far enough (GMapping's linearUpdate / angularUpdate):
    the rest;
 4. resample (systematic) only when Neff / M < ``resample_threshold``;
 5. insert the scan into each particle's grid (eq. 4, log-odds) and extend its path;
-6. measure the certainty of the particle set (EMMI and the rest).
+6. measure the certainty of the particle set (EMMI and the rest): at once, or when
+   :meth:`RBPF.measure` asks (a caller that reads it once per many updates, as an
+   environment step, skips the rest).
 
 The filter sees only odometry poses and laser ranges: it imports nothing from the
 simulator, so it runs the same on a recorded CARMEN log.
@@ -100,10 +102,12 @@ class RBPF:
         self.poses = np.zeros((config.particles, 3))
         self.log_weights = np.zeros(config.particles)
         self.accumulated_log_weights = np.zeros(config.particles)
+        self._best: int | None = None  # kept until the weights change
         self._paths = np.zeros((config.particles, 64, 3))
         self._n_path = 0
         self._last_odometry: np.ndarray | None = None
         self.step = 0
+        self._latest: UpdateMetrics | tuple | None = None  # the last update's metrics, or what measuring them needs
 
     # ------------------------------------------------------------------ state
 
@@ -121,7 +125,9 @@ class RBPF:
         """The particle of highest weight (the posterior's most likely path); among equal weights, as
         right after a resampling, the one whose weight accumulated over its whole history is highest
         (GMapping's choice)."""
-        return int(np.lexsort((-self.accumulated_log_weights, -self.log_weights))[0])
+        if self._best is None:
+            self._best = int(np.lexsort((-self.accumulated_log_weights, -self.log_weights))[0])
+        return self._best
 
     @property
     def geometry(self) -> GridGeometry:
@@ -159,9 +165,11 @@ class RBPF:
         self.poses = np.tile(pose, (m, 1))
         self.log_weights = np.zeros(m)
         self.accumulated_log_weights = np.zeros(m)
+        self._best = None
         self._n_path = 0
         self._last_odometry = None
         self.step = 0
+        self._latest = None
 
     def update_due(self, odometry_pose) -> bool:
         """Whether a scan taken at ``odometry_pose`` would be used: the first one, or once the odometry
@@ -171,11 +179,14 @@ class RBPF:
         dx, dy, dtheta = local_delta(self._last_odometry, odometry_pose)
         return math.hypot(dx, dy) >= self.config.linear_update or abs(dtheta) >= self.config.angular_update
 
-    def process(self, odometry_pose, ranges, angles, timestamp: float = 0.0) -> UpdateMetrics | None:
+    def process(self, odometry_pose, ranges, angles, timestamp: float = 0.0,
+                measure: bool = True) -> UpdateMetrics | None:
         """Feed one scan with the odometry pose at which it was taken.
 
         The first scan initialises the grids. Later scans update the filter only when
-        :meth:`update_due` (odometry in between accumulates); others return None.
+        :meth:`update_due` (odometry in between accumulates); others return None. An update
+        returns its metrics, or with ``measure=False`` None: the certainty of the particle set
+        is then computed only if :meth:`measure` is called before the next update.
         """
         odometry_pose = np.asarray(odometry_pose, dtype=np.float64)
         ranges = np.ascontiguousarray(ranges, dtype=np.float64)
@@ -185,14 +196,25 @@ class RBPF:
         if self.maps is None:
             raise RuntimeError("call reset(pose, rng) before process()")
         if self._last_odometry is None:
-            return self._initialise(odometry_pose, ranges, angles, timestamp)
-        if not self.update_due(odometry_pose):
+            self._initialise(odometry_pose, ranges, angles, timestamp)
+        elif self.update_due(odometry_pose):
+            motion = local_delta(self._last_odometry, odometry_pose)
+            self._last_odometry = odometry_pose
+            self._update(motion, ranges, angles, timestamp)
+        else:
             return None
-        motion = local_delta(self._last_odometry, odometry_pose)
-        self._last_odometry = odometry_pose
-        return self._update(motion, ranges, angles, timestamp)
+        return self.measure() if measure else None
 
-    def _initialise(self, odometry_pose, ranges, angles, timestamp) -> UpdateMetrics:
+    def measure(self) -> UpdateMetrics:
+        """The metrics of the last update: what it did, and the certainty of the particle set after it
+        (computed once, on the first call after the update)."""
+        if self._latest is None:
+            raise RuntimeError("no update to measure: process() a scan first")
+        if not isinstance(self._latest, UpdateMetrics):
+            self._latest = self._measure(*self._latest)
+        return self._latest
+
+    def _initialise(self, odometry_pose, ranges, angles, timestamp) -> None:
         self._last_odometry = odometry_pose
         cpu0, t0 = time.process_time(), time.perf_counter()
         self._ensure_extent()
@@ -201,7 +223,7 @@ class RBPF:
         self._stamp(ranges, angles)
         phases = dict.fromkeys(_PHASES, 0.0)
         phases["insertion"] = time.perf_counter() - t0
-        return self._measure(timestamp, resampled=False, matched=0.0, phases=phases, cpu0=cpu0)
+        self._finish(timestamp, False, 0.0, phases, cpu0)
 
     def _update(self, motion, ranges, angles, timestamp) -> UpdateMetrics:
         cfg, m = self.config, self.config.particles
@@ -237,6 +259,7 @@ class RBPF:
         self.log_weights = self.log_weights + increments
         self.log_weights -= self.log_weights.max()
         self.accumulated_log_weights += increments
+        self._best = None
         neff = certainty.effective_sample_size(self.log_weights, log=True)
         t2 = time.perf_counter()
         phases["weighting"] = t2 - t1
@@ -252,7 +275,12 @@ class RBPF:
         self._append_path()
         self._stamp(ranges, angles)
         phases["insertion"] = time.perf_counter() - t3
-        return self._measure(timestamp, resampled, float(matched.mean()), phases, cpu0)
+        self._finish(timestamp, resampled, float(matched.mean()), phases, cpu0)
+
+    def _finish(self, timestamp: float, resampled: bool, matched: float, phases: dict, cpu0: float) -> None:
+        """Count the update and keep what :meth:`measure` needs (the CPU time so far, in ms)."""
+        self._latest = (self.step, timestamp, resampled, matched, phases, 1e3 * (time.process_time() - cpu0))
+        self.step += 1
 
     def _insert(self, ranges, angles) -> None:
         self.maps.insert(self.poses, ranges, angles, self.max_range, self.config.max_range_free,
@@ -308,6 +336,7 @@ class RBPF:
         self._paths[:, :self._n_path] = self._paths[indices, :self._n_path]
         self.accumulated_log_weights = self.accumulated_log_weights[indices]
         self.log_weights = np.zeros_like(self.log_weights)
+        self._best = None
 
     def _append_path(self) -> None:
         if self._n_path == self._paths.shape[1]:
@@ -323,8 +352,8 @@ class RBPF:
         if self.maps.grow_to_contain(lo[0], lo[1], hi[0], hi[1], self.grow_chunk) and self.revisits is not None:
             self.revisits.follow(self.maps.geometry)
 
-    def _measure(self, timestamp: float, resampled: bool, matched: float, phases: dict,
-                 cpu0: float) -> UpdateMetrics:
+    def _measure(self, step: int, timestamp: float, resampled: bool, matched: float, phases: dict,
+                 cpu_ms: float) -> UpdateMetrics:
         """Every certainty measure of the particle set, through :mod:`emmi_gym.certainty`.
 
         EMMI needs a pass over the cells the particles dispute only (the agreed cells
@@ -332,12 +361,12 @@ class RBPF:
         entropies and the best map's mean information come from the grids' code
         histograms. All are kept current by the insertion and the resampling.
         """
-        t0 = time.perf_counter()
+        cpu0, t0 = time.process_time(), time.perf_counter()
         lut, counts = self.cell_codes.probability, self.maps.counts
         w = self.weights
         path_entropy = certainty.path_entropy(self.paths, w)
         metrics = UpdateMetrics(
-            step=self.step, time=timestamp,
+            step=step, time=timestamp,
             emmi=certainty.emmi_of_parts(self.maps.disputed_codes(), w, self.maps.agreed_counts, lut=lut),
             mean_information_best=certainty.mean_information_of_code_counts(counts[self.best], lut),
             pose_entropy=certainty.pose_entropy(self.poses, w),
@@ -350,6 +379,5 @@ class RBPF:
         phases["metrics"] = time.perf_counter() - t0
         metrics.phase_ms = {k: 1e3 * phases.get(k, 0.0) for k in _PHASES}
         metrics.update_ms = sum(metrics.phase_ms.values())
-        metrics.cpu_ms = 1e3 * (time.process_time() - cpu0)
-        self.step += 1
+        metrics.cpu_ms = cpu_ms + 1e3 * (time.process_time() - cpu0)
         return metrics
