@@ -1,11 +1,12 @@
 """Environment steps per second for each id at default settings, and where the time goes.
 
-    python scripts/bench_env.py [--seconds 20] [--ids ExploreVelocity-v0 ...]
+    python scripts/bench_env.py [--decisions 60] [--velocity-steps 10000] [--repeats 3] [--ids ExploreVelocity-v0 ...]
 
-Single process. For each id: reset (seed 0), then act until ``--seconds`` of time
-inside ``step()`` (random valid waypoint actions; random velocities), counting env
-steps and simulator steps; resets (and LoopCorridor's drive to the decision point)
-are not counted. The split times the simulator (physics and odometry), the laser,
+Single process. For each id: reset (seed 0), then take a fixed number of env steps
+(random valid waypoint actions; random velocities; drawn from seed 0, so every run, and
+the code before a change that is only speed, plays the same episodes), timing the
+calls of ``step()``; resets (and LoopCorridor's drive to the decision point) are not
+counted. The median of ``--repeats`` runs is printed. The split times the simulator (physics and odometry), the laser,
 the RBPF update, its metrics (EMMI and the other certainty measures: once per step by
 default, see the env's ``update_records``), the expected-map products (coverage, accuracy,
 planning and candidates) and the observation; each part's time excludes the parts timed
@@ -61,44 +62,62 @@ timed(EmmiEnv, "_refresh", SPENT, "map products")
 timed(EmmiEnv, "_observation", SPENT, "observation")
 
 
-def bench(env_id: str, seconds: float) -> None:
+def bench(env_id: str, n_steps: int) -> tuple[float, float, dict, int]:
+    """One run of ``n_steps`` env steps; returns (wall seconds inside step(), simulator steps, seconds per
+    part, filter updates)."""
     env = gym.make(env_id)
     core = env.unwrapped
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    steps = sim_steps = 0
+    sim_steps = updates = 0
     wall = 0.0
     SPENT.clear()
-    while wall < seconds:
+    for step in range(1, n_steps + 1):
         if core.config.action_mode == "waypoint":
             action = int(rng.choice(np.flatnonzero(core.action_masks())))
         else:
             action = rng.uniform(-1, 1, 2).astype(np.float32)
+        before = core.slam.step
         t0 = time.perf_counter()
         _, _, terminated, truncated, info = env.step(action)
         wall += time.perf_counter() - t0
-        steps += 1
         sim_steps += info["sim_steps_this_step"]
+        updates += core.slam.step - before
         if terminated or truncated:
             saved = dict(SPENT)
-            env.reset(seed=steps)  # reset time (the preamble) is not counted
+            env.reset(seed=step)  # reset time (the preamble) is not counted
             SPENT.clear()
             SPENT.update(saved)
+    env.close()
     spent = dict(SPENT)
     spent["other"] = max(0.0, wall - sum(spent.values()))
-    print(f"{env_id}: {steps / wall:.1f} env steps/s, {sim_steps / wall:.0f} simulator steps/s "
-          f"({steps} env steps, {sim_steps} simulator steps in {wall:.1f} s of step())")
+    return wall, sim_steps, spent, updates
+
+
+def report(env_id: str, n_steps: int, repeats: int) -> None:
+    """The median of ``repeats`` runs of the same episodes (and the range of the rates)."""
+    runs = [bench(env_id, n_steps) for _ in range(repeats)]
+    walls = np.array([run[0] for run in runs])
+    wall, sim_steps, spent, updates = runs[int(np.argsort(walls)[len(walls) // 2])]
+    rates = n_steps / walls
+    print(f"{env_id}: {n_steps / wall:.1f} env steps/s ({rates.min():.1f}-{rates.max():.1f} over {repeats} runs), "
+          f"{sim_steps / wall:.0f} simulator steps/s, {1e3 * spent['rbpf'] / max(updates, 1):.2f} ms of RBPF per "
+          f"update ({n_steps} env steps, {sim_steps} simulator steps, {updates} filter updates, "
+          f"{wall:.1f} s of step() in the median run)")
     print("  time share: " + ", ".join(f"{k} {100 * v / wall:.0f}%" for k, v in spent.items()))
-    env.close()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--decisions", type=int, default=60, help="env steps of each waypoint id")
+    parser.add_argument("--velocity-steps", type=int, default=10000, help="env steps of ExploreVelocity-v0")
+    parser.add_argument("--repeats", type=int, default=3, help="runs of the same episodes; the median is shown")
     parser.add_argument("--ids", nargs="+", choices=ENV_IDS, default=list(ENV_IDS), help="which environments")
     args = parser.parse_args()
     for name in args.ids:
-        bench(f"emmi_gym/{name}", args.seconds)
+        env_id = f"emmi_gym/{name}"
+        velocity = gym.spec(env_id).kwargs.get("action_mode") == "velocity"
+        report(env_id, args.velocity_steps if velocity else args.decisions, args.repeats)
 
 
 if __name__ == "__main__":

@@ -121,14 +121,19 @@ def nearest_surface_d2(grid, hits, hx, hy, side_x, side_y, window):
     """Squared distance (cells^2) from the end point (hx, hy) to the nearest surface point within
     ``window`` cells (Chebyshev), inf if none; the caller keeps window + 1 cells from the edge.
 
-    Rings of growing Chebyshev radius k are searched in turn; the end point and every mean
-    hit point lie inside their cells, so no point of ring k is nearer than k - 1 cells
-    and the search stops as soon as (k - 1)^2 >= the best distance found.
+    Rings of growing Chebyshev radius k are searched in turn. Every mean hit point lies
+    inside its cell, so a point of ring k is at least k - 1 + e cells away, e the end
+    point's distance to the nearest side of its own cell (0 to 0.5): the search stops as
+    soon as (k - 1 + e)^2 >= the best distance found (e less a rounding slack, so that the
+    result is the exhaustive search's). An end point near its cell's middle that has a
+    surface point in its own cell is settled without ring 1.
     """
     hcx, hcy = int(math.floor(hx)), int(math.floor(hy))
+    fx, fy = hx - hcx, hy - hcy
+    edge = min(fx, 1.0 - fx, fy, 1.0 - fy) - 1e-9
     best = _try_cell(grid, hits, hcy, hcx, side_x, side_y, hx, hy, np.inf)
     for k in range(1, window + 1):
-        if (k - 1) * (k - 1) >= best:
+        if (k - 1 + edge) * (k - 1 + edge) >= best:
             break
         for j in range(-k, k + 1):
             best = _try_cell(grid, hits, hcy - k, hcx + j, side_x, side_y, hx, hy, best)
