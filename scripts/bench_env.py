@@ -11,13 +11,21 @@ the RBPF update, its metrics (EMMI and the other certainty measures: once per st
 default, see the env's ``update_records``), the expected-map products (coverage, accuracy,
 planning and candidates) and the observation; each part's time excludes the parts timed
 inside it.
+
+This machine's speed drifts by tens of percent from minute to minute, more than most
+changes gain: ``--against DIR`` (a ``git worktree`` of the code before a change) plays
+the same steps with both codes in turns, one step each, and prints their ratio.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
 import time
 from collections import defaultdict
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -28,6 +36,7 @@ from emmi_gym.slam import RBPF
 from emmi_gym.world import Simulator
 
 gym.register_envs(emmi_gym)
+REPO = Path(__file__).resolve().parent.parent
 
 
 _OPEN: list = []  # the timed calls under way, innermost last
@@ -62,36 +71,74 @@ timed(EmmiEnv, "_refresh", SPENT, "map products")
 timed(EmmiEnv, "_observation", SPENT, "observation")
 
 
-def bench(env_id: str, n_steps: int) -> tuple[float, float, dict, int]:
-    """One run of ``n_steps`` env steps; returns (wall seconds inside step(), simulator steps, seconds per
-    part, filter updates)."""
+def play(env_id: str):
+    """Step the fixed episodes of ``env_id`` for ever, yielding after each env step (wall seconds inside
+    ``step()``, simulator steps, filter updates); resets are not timed, nor are their parts."""
     env = gym.make(env_id)
     core = env.unwrapped
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    sim_steps = updates = 0
-    wall = 0.0
+    step = 0
+    try:
+        while True:
+            if core.config.action_mode == "waypoint":
+                action = int(rng.choice(np.flatnonzero(core.action_masks())))
+            else:
+                action = rng.uniform(-1, 1, 2).astype(np.float32)
+            before = core.slam.step
+            t0 = time.perf_counter()
+            _, _, terminated, truncated, info = env.step(action)
+            wall = time.perf_counter() - t0
+            step += 1
+            updates = core.slam.step - before
+            if terminated or truncated:
+                saved = dict(SPENT)
+                env.reset(seed=step)
+                SPENT.clear()
+                SPENT.update(saved)
+            yield wall, info["sim_steps_this_step"], updates
+    finally:
+        env.close()
+
+
+def bench(env_id: str, n_steps: int) -> tuple[float, float, dict, int]:
+    """One run of ``n_steps`` env steps; returns (wall seconds inside step(), simulator steps, seconds per
+    part, filter updates)."""
     SPENT.clear()
-    for step in range(1, n_steps + 1):
-        if core.config.action_mode == "waypoint":
-            action = int(rng.choice(np.flatnonzero(core.action_masks())))
-        else:
-            action = rng.uniform(-1, 1, 2).astype(np.float32)
-        before = core.slam.step
-        t0 = time.perf_counter()
-        _, _, terminated, truncated, info = env.step(action)
-        wall += time.perf_counter() - t0
-        sim_steps += info["sim_steps_this_step"]
-        updates += core.slam.step - before
-        if terminated or truncated:
-            saved = dict(SPENT)
-            env.reset(seed=step)  # reset time (the preamble) is not counted
-            SPENT.clear()
-            SPENT.update(saved)
-    env.close()
+    wall = sim_steps = updates = 0
+    for _, (dt, sims, ups) in zip(range(n_steps), play(env_id)):
+        wall, sim_steps, updates = wall + dt, sim_steps + sims, updates + ups
     spent = dict(SPENT)
     spent["other"] = max(0.0, wall - sum(spent.values()))
     return wall, sim_steps, spent, updates
+
+
+def against(env_id: str, n_steps: int, code: str) -> None:
+    """The same episodes played by this code and by the code in ``code`` (a checkout of another commit), in
+    two processes that take turns, one env step each: whatever the machine does meanwhile slows both alike.
+    Prints the ratio of their times (the first step of each, which loads the numba kernels, left out)."""
+    workers = [subprocess.Popen([sys.executable, __file__, "--worker", env_id], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=path))
+               for path in (str(REPO), str(Path(code).resolve()))]
+    times = np.zeros((2, n_steps))
+    for k in range(n_steps):
+        for w, worker in enumerate(workers):
+            worker.stdin.write("step\n")
+            worker.stdin.flush()
+            times[w, k] = float(worker.stdout.readline())
+    for worker in workers:
+        worker.stdin.close()
+        worker.wait()
+    this, other = times[:, 1:].sum(axis=1)
+    print(f"{env_id}: {n_steps - 1} env steps in {this:.1f} s with this code, {other:.1f} s with {code}: "
+          f"{other / this:.2f} times as fast")
+
+
+def worker(env_id: str) -> None:
+    """The other end of :func:`against`: one env step per line read, its wall time written back."""
+    episodes = play(env_id)
+    for _ in sys.stdin:
+        print(next(episodes)[0], flush=True)
 
 
 def report(env_id: str, n_steps: int, repeats: int) -> None:
@@ -113,11 +160,20 @@ def main() -> None:
     parser.add_argument("--velocity-steps", type=int, default=10000, help="env steps of ExploreVelocity-v0")
     parser.add_argument("--repeats", type=int, default=3, help="runs of the same episodes; the median is shown")
     parser.add_argument("--ids", nargs="+", choices=ENV_IDS, default=list(ENV_IDS), help="which environments")
+    parser.add_argument("--against", metavar="DIR", help="a checkout of other code (git worktree add DIR REV): "
+                        "play the same steps with both, in turns, and print the ratio of their times")
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.worker:
+        return worker(args.worker)
     for name in args.ids:
         env_id = f"emmi_gym/{name}"
         velocity = gym.spec(env_id).kwargs.get("action_mode") == "velocity"
-        report(env_id, args.velocity_steps if velocity else args.decisions, args.repeats)
+        n_steps = args.velocity_steps if velocity else args.decisions
+        if args.against:
+            against(env_id, n_steps, args.against)
+        else:
+            report(env_id, n_steps, args.repeats)
 
 
 if __name__ == "__main__":
