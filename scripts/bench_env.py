@@ -6,11 +6,11 @@ Single process. For each id: reset (seed 0), then take a fixed number of env ste
 (random valid waypoint actions; random velocities; drawn from seed 0, so every run, and
 the code before a change that is only speed, plays the same episodes), timing the
 calls of ``step()``; resets (and LoopCorridor's drive to the decision point) are not
-counted. The median of ``--repeats`` runs is printed. The split times the simulator (physics and odometry), the laser,
-the RBPF update, its metrics (EMMI and the other certainty measures: once per step by
-default, see the env's ``update_records``), the expected-map products (coverage, accuracy,
-planning and candidates) and the observation; each part's time excludes the parts timed
-inside it.
+counted. The median of ``--repeats`` runs is printed. The split times the simulator
+(physics and odometry), the laser, the RBPF update, its metrics (EMMI and the other
+certainty measures: once per step by default, see the env's ``update_records``), the
+expected-map products (coverage, accuracy, planning and candidates) and the observation;
+each part's time excludes the parts timed inside it.
 
 This machine's speed drifts by tens of percent from minute to minute, more than most
 changes gain: ``--against DIR`` (a ``git worktree`` of the code before a change) plays

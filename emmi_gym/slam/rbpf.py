@@ -225,7 +225,7 @@ class RBPF:
         phases["insertion"] = time.perf_counter() - t0
         self._finish(timestamp, False, 0.0, phases, cpu0)
 
-    def _update(self, motion, ranges, angles, timestamp) -> UpdateMetrics:
+    def _update(self, motion, ranges, angles, timestamp) -> None:
         cfg, m = self.config, self.config.particles
         phases = {}
         cpu0, t0 = time.process_time(), time.perf_counter()
