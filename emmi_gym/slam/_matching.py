@@ -248,9 +248,13 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
            angular_step, refinements):
     """GMapping's scan matcher: greedy moves of +-step in x, y, theta on :func:`_objective`; halve the
     steps when none helps, at most ``refinements`` times. The move straight back to where the last
-    step came from is not scored again (it scored less). Returns (best pose, its value, its matched beams)."""
+    step came from is not scored again (it scored less), and the beams turned by +-astep are computed
+    once per heading and step (a move in x or y keeps them; a turn taken makes them the current ones).
+    Returns (best pose, its value, its matched beams)."""
     current = np.empty((ranges.size, 4))
-    turned = np.empty((ranges.size, 4))
+    plus = np.empty((ranges.size, 4))   # the beams at heading + astep, valid while plus_ok
+    minus = np.empty((ranges.size, 4))  # ... - astep
+    plus_ok = minus_ok = False
     pose = start.copy()
     n = beam_offsets(pose[2], ranges, angles, max_range, s.resolution, current)
     best, matched = _objective(coarse_stage, grid, hits, coarse, pose, current, n, s, mean, precision, -np.inf)
@@ -271,8 +275,16 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
             offsets = current
             if axis == 2:
                 candidate[2] += sign * astep
-                beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, turned)
-                offsets = turned
+                if move == 4:
+                    if not plus_ok:
+                        beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, plus)
+                        plus_ok = True
+                    offsets = plus
+                else:
+                    if not minus_ok:
+                        beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, minus)
+                        minus_ok = True
+                    offsets = minus
             else:
                 candidate[axis] += sign * lstep
             value, hit = _objective(coarse_stage, grid, hits, coarse, candidate, offsets, n, s, mean, precision, best)
@@ -283,8 +295,12 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
                 taken = move
         back = taken ^ 1 if improved else -1
         if improved:
-            if best_pose[2] != pose[2]:
-                beam_offsets(best_pose[2], ranges, angles, max_range, s.resolution, current)
+            if taken == 4:  # the turned beams are those of the new heading: keep them, not recompute
+                current, plus = plus, current
+            elif taken == 5:
+                current, minus = minus, current
+            if taken >= 4:
+                plus_ok = minus_ok = False
             pose[:] = best_pose
         else:
             refinement += 1
@@ -292,6 +308,7 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
                 break
             lstep *= 0.5
             astep *= 0.5
+            plus_ok = minus_ok = False
     return pose, best, matched
 
 
