@@ -117,6 +117,8 @@ def against(env_id: str, n_steps: int, code: str) -> None:
     """The same episodes played by this code and by the code in ``code`` (a checkout of another commit), in
     two processes that take turns, one env step each: whatever the machine does meanwhile slows both alike.
     Prints the ratio of their times (the first step of each, which loads the numba kernels, left out)."""
+    if not (Path(code) / "emmi_gym" / "__init__.py").is_file():  # else the worker would import this code
+        raise SystemExit(f"--against {code}: no emmi_gym package there (make one with git worktree add DIR REV)")
     workers = [subprocess.Popen([sys.executable, __file__, "--worker", env_id], stdin=subprocess.PIPE,
                                 stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=path))
                for path in (str(REPO), str(Path(code).resolve()))]
@@ -125,7 +127,11 @@ def against(env_id: str, n_steps: int, code: str) -> None:
         for w, worker in enumerate(workers):
             worker.stdin.write("step\n")
             worker.stdin.flush()
-            times[w, k] = float(worker.stdout.readline())
+            line = worker.stdout.readline()
+            if not line:  # it stopped: its traceback went to stderr
+                raise SystemExit(f"the worker running {env_id} with the code in "
+                                 f"{'this checkout' if w == 0 else code} stopped at step {k}")
+            times[w, k] = float(line)
     for worker in workers:
         worker.stdin.close()
         worker.wait()
