@@ -43,7 +43,8 @@ def crossed_cells(x0, y0, x1, y1):
 
 def twin_rays(ranges, angles, gaps, max_range, free_range):
     """(angle, length, kind) of every insertion ray: each beam and the sub-rays across its gap, as long
-    as the nearer of the two beams."""
+    as the nearer of the two beams, all from the laser (the kernel starts its sub-rays later, and must
+    free the same cells)."""
     n = len(ranges)
     lengths = [r if 0 < r < max_range else (free_range if r > 0 else 0.0) for r in ranges]
     rays = []
@@ -106,7 +107,9 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     assert (gaps[-1] > 0) == full_circle
     rays = K.scan_rays(ranges, angles, gaps, 2.0, np.full(n_beams, 0.7), RES)
     want_rays = twin_rays(ranges, angles, gaps, 2.0, 0.7)
-    np.testing.assert_allclose(np.column_stack(rays), np.array(want_rays), atol=1e-12)
+    np.testing.assert_allclose(np.column_stack(rays[:3]), np.array(want_rays), atol=1e-12)
+    starts, beams = rays[3], rays[2] != K.RAY_BOUNDED
+    assert np.all(starts[beams] == 0.0) and np.all(starts >= 0.0)
     expected = twin_insert(codes, poses, want_rays, 17, -8, 100)
     got = codes.copy()
     hits = np.zeros((m, h, w, 3), dtype=np.int8)
@@ -154,7 +157,7 @@ def test_hit_means_follow_the_end_points():
         counts[0, 128] = 100
         serial, _ = K.insert_scans(0, 1, codes, hits, counts, np.zeros((1, 10, 10), dtype=np.int32), 1,
                                    np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
-                                   np.array([K.RAY_HIT]), 17, -8, 100, 0.0, 0.0, RES, stamp, serial,
+                                   np.array([K.RAY_HIT]), np.zeros(1), 17, -8, 100, 0.0, 0.0, RES, stamp, serial,
                                    np.empty(100, dtype=np.int32))
     stored = hits[0, 5, 5]
     assert stored[2] == 3
