@@ -77,9 +77,11 @@ def set_kernel_threads(threads: int) -> None:
 
 def chunk_bounds(n: int, min_chunk: int = 1) -> list[tuple[int, int]]:
     """``range(n)`` split into one (start, stop) chunk per thread, each of at least ``min_chunk`` items
-    (one chunk if ``n`` is smaller)."""
+    (one chunk if ``n`` is smaller). The first chunk, which :func:`run_calls` runs on the calling thread
+    while the pool's threads wake up, is the largest (15 particles on two threads: 8 and 7; the other
+    way round the caller waited for the eighth, 3-4% of an update)."""
     chunks = max(1, min(_threads, n // max(1, min_chunk)))
-    bounds = [n * k // chunks for k in range(chunks + 1)]
+    bounds = [n - n * (chunks - k) // chunks for k in range(chunks + 1)]
     return list(zip(bounds[:-1], bounds[1:]))
 
 

@@ -123,6 +123,25 @@ def test_metrics_are_those_of_the_certainty_functions(loop_runs):
     assert all(set(r.phase_ms) == {"scan_matching", "insertion", "weighting", "resampling", "metrics"} for r in rows)
 
 
+def test_chunks_cover_the_items_once_in_order_the_caller_s_first_and_largest():
+    from emmi_gym.threads import chunk_bounds, kernel_threads, set_kernel_threads
+
+    threads = kernel_threads()
+    try:
+        for n_threads in (1, 2, 3, 7):
+            set_kernel_threads(n_threads)
+            for n, min_chunk in ((15, 1), (5, 1), (1, 1), (0, 1), (100_000, 20_000), (30_000, 20_000)):
+                chunks = chunk_bounds(n, min_chunk)
+                sizes = [stop - start for start, stop in chunks]
+                assert [start for start, _ in chunks] == [0] + [stop for _, stop in chunks[:-1]]
+                assert chunks[-1][1] == n and len(chunks) <= n_threads
+                assert sizes[0] == max(sizes) and max(sizes) - min(sizes) <= 1
+        set_kernel_threads(2)
+        assert chunk_bounds(15) == [(0, 8), (8, 15)]
+    finally:
+        set_kernel_threads(threads)
+
+
 def test_same_seed_same_filter_bit_for_bit_on_any_number_of_threads():
     from emmi_gym.threads import kernel_threads, set_kernel_threads
 
