@@ -134,6 +134,36 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     np.testing.assert_array_equal(coarse, [occupied_per_block(c, block) for c in expected])
 
 
+@pytest.mark.parametrize("resolution", [0.025, 0.05, 0.1])
+def test_sub_rays_started_late_free_what_sub_rays_from_the_laser_free(resolution):
+    """A 361-beam scan to 30 m, as the radish logs' (a ragged room, gaps and far walls): the kernel's
+    sub-rays, started where they are needed, leave every grid as sub-rays run from the laser."""
+    rng = np.random.default_rng(7)
+    n = 361
+    angles = np.linspace(-np.pi / 2, np.pi / 2, n)
+    ranges = np.clip(np.repeat(rng.uniform(1.0, 30.0, n // 10 + 1), 10)[:n] + rng.normal(0.0, 0.3, n), 0.3, 30.0)
+    ranges[rng.random(n) < 0.05] = 30.0  # no echo
+    rays = K.scan_rays(ranges, angles, beam_gaps(angles), 30.0, np.full(n, 0.0), resolution)
+    sub_rays = rays[2] == K.RAY_BOUNDED
+    assert np.count_nonzero(rays[3][sub_rays] > 0.0) > 0.5 * np.count_nonzero(sub_rays)  # most start late
+    side = int(round(64.0 / resolution))
+    m = 3
+    poses = np.column_stack([32.0 + rng.uniform(-0.5, 0.5, m), 32.0 + rng.uniform(-0.5, 0.5, m),
+                             rng.uniform(-np.pi, np.pi, m)])
+    grids = []
+    for starts in (rays[3], np.zeros_like(rays[3])):
+        codes = np.zeros((m, side, side), dtype=np.int8)
+        counts = np.zeros((m, 256), dtype=np.int64)
+        counts[:, 128] = side * side
+        K.insert_scans(0, m, codes, np.zeros((m, side, side, 3), dtype=np.int8), counts,
+                       np.zeros((m, side // 4, side // 4), dtype=np.int32), 4, poses, *rays[:3], starts, 17, -8, 100,
+                       0.0, 0.0, resolution, np.zeros((side, side), dtype=np.int64), 0,
+                       np.empty(side * side, dtype=np.int32))
+        grids.append(codes)
+    assert np.count_nonzero(grids[1] < 0) > 100_000  # the scans freed a large area
+    np.testing.assert_array_equal(grids[0], grids[1])
+
+
 def occupied_per_block(grid, block):
     """How many cells of each block x block block are occupied (code > 0), blocks cut at the edges."""
     h, w = grid.shape
