@@ -87,14 +87,18 @@ def main() -> None:
                "angular_update": 0.0, **json.loads(args.slam)}  # every keyframe an update
     config = RBPFConfig(**options) if args.preset == "none" else RBPFConfig.preset(args.preset, **options)
     data, out = Path(args.data), Path(args.out)
+    runs = [(data / f"{name}-seed{seed}.log.gz", f) for name in args.logs for seed in args.seeds
+            for f in args.filter_seeds]
+    missing = sorted({p.name for p, _ in runs if not p.is_file()})
+    if missing:
+        parser.error(f"--data {data}: no {', '.join(missing)} there (the radish-noisy logs, "
+                     "shared/datasets/radish-noisy)")
     out.mkdir(parents=True, exist_ok=True)
     corrected = data.parent / "carmen"
     for name in args.logs:
         picture = corrected / f"{name}-corrected.png"
         if picture.exists():
             shutil.copy(picture, out / picture.name)
-    runs = [(data / f"{name}-seed{seed}.log.gz", f) for name in args.logs for seed in args.seeds
-            for f in args.filter_seeds]
     with ProcessPoolExecutor(args.jobs) as pool:
         results = list(pool.map(run_one, [p for p, _ in runs], [config] * len(runs), [args.max_range] * len(runs),
                                 [out] * len(runs), [f for _, f in runs], [args.threads] * len(runs),
