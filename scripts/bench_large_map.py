@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _data import require_files
 
 from emmi_gym import carmen
 from emmi_gym.evaluation import absolute_trajectory_error
@@ -83,9 +84,7 @@ def main() -> None:
     parser.add_argument("--slam", default="{}", help="RBPFConfig overrides as JSON")
     parser.add_argument("--filter-seeds", nargs="+", type=int, default=[1], help="the filter's random seeds")
     args = parser.parse_args()
-    if not (args.data / "aces-corrected.log.gz").is_file():
-        parser.error(f"--data {args.data}: no aces-corrected.log.gz there (the corrected CARMEN logs, "
-                     "shared/datasets/carmen)")
+    require_files(parser, args.data, ["aces-corrected.log.gz"], "carmen")
     options = json.loads(args.slam)
     if args.threads is not None:
         set_kernel_threads(args.threads)

@@ -18,6 +18,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from _data import require_files
 from PIL import Image
 from scipy import ndimage
 
@@ -82,6 +83,7 @@ def main() -> None:
     parser.add_argument("--insertion-range", type=float, default=15.0)
     parser.add_argument("--hole-area", type=float, default=1.0, help="m^2")
     args = parser.parse_args()
+    require_files(parser, args.data, [f"{log_name}-corrected.log.gz" for log_name in BUILDINGS.values()], "carmen")
     OUT.mkdir(parents=True, exist_ok=True)
     print("| building | size | free area | walls |")
     print("| --- | --- | --- | --- |")

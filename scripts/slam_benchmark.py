@@ -29,6 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from _data import require_files
 
 from emmi_gym.carmen import read_log
 from emmi_gym.slam import RBPFConfig
@@ -89,10 +90,7 @@ def main() -> None:
     data, out = Path(args.data), Path(args.out)
     runs = [(data / f"{name}-seed{seed}.log.gz", f) for name in args.logs for seed in args.seeds
             for f in args.filter_seeds]
-    missing = sorted({p.name for p, _ in runs if not p.is_file()})
-    if missing:
-        parser.error(f"--data {data}: no {', '.join(missing)} there (the radish-noisy logs, "
-                     "shared/datasets/radish-noisy)")
+    require_files(parser, data, [p.name for p, _ in runs], "radish-noisy")
     out.mkdir(parents=True, exist_ok=True)
     corrected = data.parent / "carmen"
     for name in args.logs:
