@@ -5,10 +5,10 @@
 Data: the loop_corridor loop (start -> decision -> start) recorded once with the
 default laser (360 deg, 180 beams, 8 m); the filter runs on a fixed 25 m x 20 m grid
 of 0.1 m cells covering the loop, its kernels on one thread per core (``emmi_gym.threads``).
-Every update includes the expected map and EMMI and the other metrics. The first 10 updates
-(numba loading) are not timed. ``--table`` adds M in {5, 15, 30, 60} and beams in {90, 180, 360}; ``--extents``
-runs the same loop on square grids of 30, 50 and 100 m: the metrics and the resampling
-should cost the same whatever the grid's extent.
+Every update includes the expected map and EMMI and the other metrics. The first 10
+updates (numba loading) are not timed. ``--table`` adds M in {5, 15, 30, 60} and beams in
+{90, 180, 360}; ``--extents`` runs the same loop on square grids of 30, 50 and 100 m: the
+metrics and the resampling should cost the same whatever the grid's extent.
 """
 
 from __future__ import annotations
