@@ -164,6 +164,24 @@ def test_sub_rays_started_late_free_what_sub_rays_from_the_laser_free(resolution
     np.testing.assert_array_equal(grids[0], grids[1])
 
 
+def test_a_laser_off_the_grid_frees_nothing_however_its_sub_rays_start():
+    """A pose outside the grid, its scan reaching in: the end points inside are hit, and no cell is freed
+    (the rays leave from outside the grid), with sub-rays started late or from the laser."""
+    angles = np.linspace(-0.3, 0.3, 7)
+    ranges = np.full(7, 3.0)
+    rays = K.scan_rays(ranges, angles, beam_gaps(angles), 8.0, np.zeros(7), RES)
+    assert np.any(rays[3] > 1.0)  # some sub-rays start inside the grid (its edge is 1 m ahead)
+    for starts in (rays[3], np.zeros_like(rays[3])):
+        codes = np.zeros((1, 40, 40), dtype=np.int8)
+        counts = np.zeros((1, 256), dtype=np.int64)
+        counts[0, 128] = 1600
+        K.insert_scans(0, 1, codes, np.zeros((1, 40, 40, 3), dtype=np.int8), counts,
+                       np.zeros((1, 10, 10), dtype=np.int32), 4, np.array([[-1.0, 2.0, 0.0]]), *rays[:3], starts,
+                       17, -8, 100, 0.0, 0.0, RES, np.zeros((40, 40), dtype=np.int64), 0,
+                       np.empty(1600, dtype=np.int32))
+        assert np.count_nonzero(codes > 0) == 7 and not np.any(codes < 0)
+
+
 def occupied_per_block(grid, block):
     """How many cells of each block x block block are occupied (code > 0), blocks cut at the edges."""
     h, w = grid.shape

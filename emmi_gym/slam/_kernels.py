@@ -182,6 +182,8 @@ def insert_scans(start, stop, codes, hits, counts, coarse, block, poses, ray_ang
                     n_touched += 1
                 stamp[row, col] = hit_id
                 _add_clamped(grid, counts[i], coarse[i], block, row, col, inc_occupied, clamp)
+        if not (0.0 <= gx0 < w and 0.0 <= gy0 < h):
+            continue  # a laser off the grid frees nothing: its rays stop at once (a late start may not)
         for b in range(n_rays):
             length = ray_lengths[b]
             if length <= 0.0 or ray_starts[b] >= length:
