@@ -2,15 +2,17 @@
 
 import math
 
+import numba as nb
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from emmi_gym.certainty import _kernels as certainty_kernels
+from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam import _kernels as K
 from emmi_gym.slam import _matching as MT
-from emmi_gym.slam import RBPFConfig
+from emmi_gym.slam._memcpy import copy_rows
 from emmi_gym.slam.occupancy import beam_gaps
 from emmi_gym.slam.resampling import systematic_resample
 
@@ -406,6 +408,42 @@ def test_sorted_cells_is_a_sort(values, scale):
     """The radix sort of the resampling's cells: the same as np.sort, whatever the largest index."""
     cells = (np.array(values, dtype=np.int64) >> (8 * scale)).astype(np.int32)
     np.testing.assert_array_equal(K.sorted_cells(cells), np.sort(cells))
+
+
+@given(st.lists(st.integers(0, 40 * 37 - 1), max_size=400, unique=True), st.integers(1, 70), st.integers(1, 5))
+def test_copy_spans_cover_the_cells_row_by_row_and_the_blocks_they_reach(values, max_gap, block):
+    """Every cell in one span, every span within a row from a listed cell to a listed cell, spans of a
+    row joined exactly when at most ``max_gap`` apart, and each span's blocks those of its cells."""
+    width, cells = 37, np.sort(np.array(values, dtype=np.int32))
+    spans = K.copy_spans(cells, width, block, max_gap)
+    covered = np.concatenate([np.arange(a, b) for a, b in spans[:, :2]] or [np.empty(0, dtype=np.int64)])
+    np.testing.assert_array_equal(np.intersect1d(covered, cells), cells)  # each cell, in one span only:
+    assert covered.size == np.unique(covered).size
+    assert np.all(np.isin(spans[:, 0], cells)) and np.all(np.isin(spans[:, 1] - 1, cells))
+    assert np.all(spans[:, 0] // width == (spans[:, 1] - 1) // width)
+    for (a0, b0, *_), (a1, *_) in zip(spans[:-1], spans[1:]):
+        assert a1 // width != a0 // width or a1 - b0 + 1 > max_gap
+    for s, inside in enumerate(spans[:, :2]):
+        assert np.all(np.diff(cells[(cells >= inside[0]) & (cells < inside[1])]) <= max_gap)
+        rows, cols = np.divmod(np.arange(*inside), width)
+        blocks = np.unique(rows // block * -(-width // block) + cols // block)
+        np.testing.assert_array_equal(np.arange(spans[s, 2], spans[s, 3]), blocks)
+
+
+def test_copy_rows_copies_whole_rows_start_to_stop_and_nothing_else():
+    @nb.njit
+    def copy(target, source, start, stop):
+        copy_rows(target, source, start, stop)
+
+    rng = np.random.default_rng(0)
+    for shape, dtype in (((50,), np.int8), ((50, 3), np.int8), ((50, 2, 2), np.int32)):
+        source = rng.integers(-100, 100, shape).astype(dtype)
+        for start, stop in ((0, 50), (7, 19), (20, 20), (49, 50)):
+            target = np.zeros_like(source)
+            copy(target, source, start, stop)
+            expected = np.zeros_like(source)
+            expected[start:stop] = source[start:stop]
+            np.testing.assert_array_equal(target, expected)
 
 
 def test_resample_rows_copy_the_parents_columns_and_name_the_cells_that_agree():

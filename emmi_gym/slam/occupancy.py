@@ -202,7 +202,8 @@ class ParticleMaps:
     def resample(self, parents: np.ndarray) -> None:
         """Particle i takes the grid of particle ``parents[i]``, an arrangement that keeps survivors in
         place (:func:`~emmi_gym.slam.resampling.survivors_in_place`): only the dead particles'
-        disputed cells are copied (elsewhere all grids already hold the same values), the
+        disputed cells are copied (elsewhere all grids already hold the same values), in spans
+        of a row (``_kernels.copy_spans``: the agreed cells between come along, unchanged), the
         disputed cells' table takes the same copies, and the agreement is re-derived among the
         survivors for the cells whose codes now agree (the others stay disputed). How long each
         phase took is left in :attr:`resample_ms`."""
@@ -213,11 +214,12 @@ class ParticleMaps:
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
         clock = _PhaseClock()
-        cells = _kernels.sorted_cells(self.disputed_cells)  # the copies go through each grid in memory order
+        spans = _kernels.copy_spans(_kernels.sorted_cells(self.disputed_cells), self.geometry.cols, self.block,
+                                    _kernels.SPAN_GAP)
         clock.lap("order")
         dead = np.flatnonzero(parents != np.arange(self.n_particles))
-        run_in_chunks(_kernels.resample_cells, dead.size, *self._flat_grids(), self.coarse, self.block,
-                      self.geometry.cols, cells, dead, parents)
+        run_in_chunks(_kernels.resample_cells, dead.size, *self._flat_grids(), _flat(self.coarse, self.n_particles),
+                      spans, dead, parents)
         self.counts = self.counts[parents]
         clock.lap("copies")
         candidates = np.empty(self._n_disputed, dtype=np.int32)
