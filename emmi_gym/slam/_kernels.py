@@ -306,7 +306,8 @@ def _unlist(cell, disputed, table, n_disputed, position):
     n_disputed -= 1
     last = disputed[n_disputed]
     disputed[p] = last
-    table[p] = table[n_disputed]
+    if p != n_disputed:  # memcpy's regions must not overlap
+        copy_rows(table[p], table[n_disputed], 0, table.shape[1])
     position[last] = p
     position[cell] = -1
     return n_disputed
@@ -341,7 +342,7 @@ def record_agreement(cells, agreement, rows, status, agreed_counts, disputed, ta
                 disputed[p] = cell
                 position[cell] = p
                 n_disputed += 1
-            table[p] = rows[k]
+            copy_rows(table[p], rows[k], 0, table.shape[1])
     return n_disputed
 
 
@@ -369,7 +370,7 @@ def unlist_agreed(cells, agreement, status, agreed_counts, disputed, table, n_di
         if status[cell] == DISPUTED:
             if kept != k:
                 disputed[kept] = cell
-                table[kept] = table[k]
+                copy_rows(table[kept], table[k], 0, table.shape[1])
                 position[cell] = kept
             kept += 1
         else:
