@@ -245,7 +245,9 @@ def random_scans(rng, maps, n_scans):
 
 
 def assert_agreement_is_exact(maps):
-    """The kept agreement equals one derived from scratch: same disputed cells, same agreed histogram."""
+    """The kept agreement equals one derived from scratch: same disputed cells, same agreed histogram; and
+    no grid has a mean hit point where no scan ever ended."""
+    assert not np.any(maps.hits[:, ~maps.ever_hit])
     same = np.all(maps.codes == maps.codes[:1], axis=0) & np.all(maps.hits == maps.hits[:1], axis=(0, 3))
     np.testing.assert_array_equal(np.sort(maps.disputed_cells), np.flatnonzero(~same))
     np.testing.assert_array_equal(maps.disputed_codes(), maps.codes.reshape(maps.n_particles, -1)[:, maps.disputed_cells].T)

@@ -121,11 +121,13 @@ def test_insert_scans_matches_twin(seed, m, n_beams, with_max_range, full_circle
     coarse = np.array([occupied_per_block(c, block) for c in codes])
     touched = np.empty(h * w, dtype=np.int32)
     split = m // 2  # two chunks, as on two threads (each its own stamp and list), then merged
-    serial, n_touched = K.insert_scans(0, split, got, hits, counts, coarse, block, poses, *rays, 17, -8, 100, 0.0,
-                                       0.0, RES, stamp, 0, touched)
+    ever_hit = np.zeros((h, w), dtype=np.bool_)
+    serial, n_touched = K.insert_scans(0, split, got, hits, ever_hit, counts, coarse, block, poses, *rays, 17, -8,
+                                       100, 0.0, 0.0, RES, stamp, 0, touched)
     other, other_stamp = np.empty(h * w, dtype=np.int32), np.zeros((h, w), dtype=np.int64)
-    other_serial, n_other = K.insert_scans(split, m, got, hits, counts, coarse, block, poses, *rays, 17, -8, 100,
-                                           0.0, 0.0, RES, other_stamp, 0, other)
+    other_serial, n_other = K.insert_scans(split, m, got, hits, ever_hit, counts, coarse, block, poses, *rays, 17,
+                                           -8, 100, 0.0, 0.0, RES, other_stamp, 0, other)
+    np.testing.assert_array_equal(ever_hit, np.any(hits[..., 2] > 0, axis=0))  # flagged: where an end point fell
     assert serial == 2 * split and other_serial == 2 * (m - split)
     n_touched = K.merge_touched(touched, n_touched, stamp, 0, other, n_other)
     changed = np.flatnonzero(np.any(got != codes, axis=0))
@@ -157,7 +159,7 @@ def test_sub_rays_started_late_free_what_sub_rays_from_the_laser_free(resolution
         codes = np.zeros((m, side, side), dtype=np.int8)
         counts = np.zeros((m, 256), dtype=np.int64)
         counts[:, 128] = side * side
-        K.insert_scans(0, m, codes, np.zeros((m, side, side, 3), dtype=np.int8), counts,
+        K.insert_scans(0, m, codes, np.zeros((m, side, side, 3), dtype=np.int8), np.zeros((side, side), bool), counts,
                        np.zeros((m, side // 4, side // 4), dtype=np.int32), 4, poses, *rays[:3], starts, 17, -8, 100,
                        0.0, 0.0, resolution, np.zeros((side, side), dtype=np.int64), 0,
                        np.empty(side * side, dtype=np.int32))
@@ -177,7 +179,7 @@ def test_a_laser_off_the_grid_frees_nothing_however_its_sub_rays_start():
         codes = np.zeros((1, 40, 40), dtype=np.int8)
         counts = np.zeros((1, 256), dtype=np.int64)
         counts[0, 128] = 1600
-        K.insert_scans(0, 1, codes, np.zeros((1, 40, 40, 3), dtype=np.int8), counts,
+        K.insert_scans(0, 1, codes, np.zeros((1, 40, 40, 3), dtype=np.int8), np.zeros((40, 40), bool), counts,
                        np.zeros((1, 10, 10), dtype=np.int32), 4, np.array([[-1.0, 2.0, 0.0]]), *rays[:3], starts,
                        17, -8, 100, 0.0, 0.0, RES, np.zeros((40, 40), dtype=np.int64), 0,
                        np.empty(1600, dtype=np.int32))
@@ -205,7 +207,8 @@ def test_hit_means_follow_the_end_points():
         a = math.atan2(ey - 0.05, ex - 0.05)
         counts = np.zeros((1, 256), dtype=np.int64)
         counts[0, 128] = 100
-        serial, _ = K.insert_scans(0, 1, codes, hits, counts, np.zeros((1, 10, 10), dtype=np.int32), 1,
+        serial, _ = K.insert_scans(0, 1, codes, hits, np.zeros((10, 10), bool), counts,
+                                   np.zeros((1, 10, 10), dtype=np.int32), 1,
                                    np.array([[0.05, 0.05, 0.0]]), np.array([a]), np.array([r]),
                                    np.array([K.RAY_HIT]), np.zeros(1), 17, -8, 100, 0.0, 0.0, RES, stamp, serial,
                                    np.empty(100, dtype=np.int32))

@@ -140,7 +140,7 @@ def _accumulate_hit(cell, gx, gy, col, row):
 
 
 @nb.njit(cache=True, nogil=True)
-def insert_scans(start, stop, codes, hits, counts, coarse, block, poses, ray_angles, ray_lengths, ray_kinds,
+def insert_scans(start, stop, codes, hits, ever_hit, counts, coarse, block, poses, ray_angles, ray_lengths, ray_kinds,
                  ray_starts, inc_occupied, inc_free, clamp, origin_x, origin_y, resolution, stamp, serial, touched):
     """Insert one scan, given as rays (see :func:`scan_rays`), into the grid of each particle in
     [start, stop) at its pose.
@@ -151,7 +151,9 @@ def insert_scans(start, stop, codes, hits, counts, coarse, block, poses, ray_ang
     & Woo, from the ray's start distance; a RAY_FREE ray frees its end cell too). ``stamp`` (H, W) int64
     remembers which cells this scan already touched; ``serial`` grows by 2 per particle
     and is returned with the number of cells the scan touched in these grids, whose flat
-    indices go to ``touched`` (size H * W). Hit end points also update their cell's mean hit position, and
+    indices go to ``touched`` (size H * W). Hit end points also update their cell's mean hit position and
+    set its flag in ``ever_hit`` (H, W), shared by all grids (threads may set one flag at once: the same
+    value; a flag is never cleared, so a cell without one has no mean hit point in any grid), and
     ``counts`` (M, 256), how many cells of each grid hold each code (index code + 128),
     and ``coarse``, the occupied cells per block, follow every change. Chunks of particles
     may run on parallel threads, each with its own ``stamp`` and ``touched`` (see
@@ -178,6 +180,8 @@ def insert_scans(start, stop, codes, hits, counts, coarse, block, poses, ray_ang
             if not (0 <= row < h and 0 <= col < w):
                 continue
             _accumulate_hit(hits[i, row, col], gx, gy, col, row)
+            if not ever_hit[row, col]:  # written once: threads that write a shared line take turns for it
+                ever_hit[row, col] = True
             if stamp[row, col] != hit_id:
                 if stamp[row, col] <= first:
                     touched[n_touched] = row * w + col
@@ -257,26 +261,28 @@ def _same_hit(hits, i, first, cell):
 
 
 @nb.njit(cache=True, inline="always")
-def _agrees(codes, hits, particles, cell):
-    """Whether the grids of ``particles`` hold the same code and the same mean hit point at ``cell``."""
+def _agrees(codes, hits, ever_hit, particles, cell):
+    """Whether the grids of ``particles`` hold the same code and the same mean hit point at ``cell`` (the
+    mean hit points are compared only where ``ever_hit``: elsewhere they are all zero)."""
     first = particles[0]
     c0 = codes[first, cell]
+    hit = ever_hit[cell]
     for j in range(1, particles.size):
         i = particles[j]
-        if codes[i, cell] != c0 or not _same_hit(hits, i, first, cell):
+        if codes[i, cell] != c0 or (hit and not _same_hit(hits, i, first, cell)):
             return False
     return True
 
 
 @nb.njit(cache=True, nogil=True)
-def agreement_of_cells(start, stop, codes, hits, particles, cells, out, rows):
+def agreement_of_cells(start, stop, codes, hits, ever_hit, particles, cells, out, rows):
     """``out[k]``, for k in [start, stop): the code the grids of ``particles`` share at ``cells[k]`` (with
     the same mean hit point), or DISPUTED; for a disputed cell ``rows[k]`` takes its code in every grid.
-    The grids come as flat views, ``codes`` (M, N) and ``hits`` (M, N, 3); chunks of cells may run on
-    parallel threads."""
+    The grids come as flat views, ``codes`` (M, N) and ``hits`` (M, N, 3), with the flat ``ever_hit``
+    (N) of :func:`insert_scans`; chunks of cells may run on parallel threads."""
     for k in range(start, stop):
         cell = cells[k]
-        if _agrees(codes, hits, particles, cell):
+        if _agrees(codes, hits, ever_hit, particles, cell):
             out[k] = codes[particles[0], cell]
         else:
             out[k] = DISPUTED
@@ -285,13 +291,16 @@ def agreement_of_cells(start, stop, codes, hits, particles, cells, out, rows):
 
 
 @nb.njit(cache=True, nogil=True)
-def agreement_of_hits(start, stop, codes, hits, particles, cells, out):
+def agreement_of_hits(start, stop, codes, hits, ever_hit, particles, cells, out):
     """As :func:`agreement_of_cells` for cells whose codes are known to agree in every grid (after a
-    resampling, from the disputed cells' table): only the mean hit points are compared."""
+    resampling, from the disputed cells' table): only the mean hit points are compared, and only where
+    ``ever_hit`` (most cells that come to agree lie in open space, where no scan ever ended)."""
     first = particles[0]
     for k in range(start, stop):
         cell = cells[k]
         out[k] = codes[first, cell]
+        if not ever_hit[cell]:
+            continue
         for j in range(1, particles.size):
             if not _same_hit(hits, particles[j], first, cell):
                 out[k] = DISPUTED

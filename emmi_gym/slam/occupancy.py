@@ -43,7 +43,9 @@ class ParticleMaps:
     """M occupancy grids on one :class:`GridGeometry`, updated by scans and copied by index.
 
     ``codes`` (M, H, W) int8 holds the log-odds codes; ``hits`` (M, H, W, 3) int8 the
-    mean end-point position of each cell, for the scan matcher (see ``_kernels``);
+    mean end-point position of each cell, for the scan matcher (see ``_kernels``), and
+    ``ever_hit`` (H, W) the cells where a scan ever ended in some grid (elsewhere every
+    grid's mean hit point is zero, so comparing grids there needs only their codes);
     ``counts`` (M, 256) how many cells of each grid hold each code (index code + 128),
     and ``coarse`` (M, ceil(H / block), ceil(W / block)) how many cells of each block of
     ``block x block`` cells are occupied (the scan matcher's coarse level), both kept
@@ -65,9 +67,9 @@ class ParticleMaps:
 
     #: Bytes a cell takes: per particle its code, mean hit, share of a coarse count and (when every
     #: cell is disputed) its row in the disputed cells' table; shared, its agreement status, list
-    #: positions and expected map; per insertion thread, its stamp and touched list.
+    #: positions, expected map and ever-hit flag; per insertion thread, its stamp and touched list.
     BYTES_PER_CELL_PARTICLE = 6
-    BYTES_PER_CELL = 18
+    BYTES_PER_CELL = 19
     BYTES_PER_CELL_THREAD = 12
     #: Rows the disputed cells' table starts with.
     TABLE_ROWS = 4096
@@ -91,6 +93,7 @@ class ParticleMaps:
         self.block = int(block)
         self.codes = np.zeros((n_particles, *geometry.shape), dtype=np.int8)
         self.hits = np.zeros((n_particles, *geometry.shape, 3), dtype=np.int8)
+        self.ever_hit = np.zeros(geometry.shape, dtype=np.bool_)
         self.coarse = np.zeros((n_particles, -(-geometry.rows // self.block), -(-geometry.cols // self.block)),
                                dtype=np.int32)
         self.counts = np.zeros((n_particles, 256), dtype=np.int64)
@@ -142,9 +145,9 @@ class ParticleMaps:
             self._scratch.append(_InsertionScratch(g.shape))
         scratch = self._scratch[:len(chunks)]
         first = scratch[0].serial
-        results = run_calls([(_kernels.insert_scans, start, stop, self.codes, self.hits, self.counts, self.coarse,
-                              self.block, poses, *rays, c.occupied, c.free, c.clamp, g.origin_x, g.origin_y,
-                              g.resolution, part.stamp, part.serial, part.touched)
+        results = run_calls([(_kernels.insert_scans, start, stop, self.codes, self.hits, self.ever_hit, self.counts,
+                              self.coarse, self.block, poses, *rays, c.occupied, c.free, c.clamp, g.origin_x,
+                              g.origin_y, g.resolution, part.stamp, part.serial, part.touched)
                              for (start, stop), part in zip(chunks, scratch)])
         for part, (serial, n_touched) in zip(scratch, results):
             part.serial, part.n_touched = serial, n_touched
@@ -165,8 +168,8 @@ class ParticleMaps:
         and the table's rows of those that are disputed."""
         agreement = np.empty(cells.size, dtype=np.int16)
         rows = np.empty((cells.size, self.n_particles), dtype=np.int8)
-        run_in_chunks(_kernels.agreement_of_cells, cells.size, *self._flat_grids(), particles, cells, agreement, rows,
-                      min_chunk=MIN_CELLS_PER_THREAD)
+        run_in_chunks(_kernels.agreement_of_cells, cells.size, *self._flat_grids(), _flat(self.ever_hit), particles,
+                      cells, agreement, rows, min_chunk=MIN_CELLS_PER_THREAD)
         self._reserve(self._n_disputed + cells.size)
         self._n_disputed = _kernels.record_agreement(cells, agreement, rows, _flat(self.status), self.agreed_counts,
                                                      self._disputed, self._table, self._n_disputed,
@@ -230,8 +233,8 @@ class ParticleMaps:
         cells = _kernels.sorted_cells(np.concatenate([candidates[start:start + n]
                                                       for (start, _), n in zip(chunks, found)]))
         agreement = np.empty(cells.size, dtype=np.int16)
-        run_in_chunks(_kernels.agreement_of_hits, cells.size, *self._flat_grids(), np.unique(parents), cells,
-                      agreement, min_chunk=MIN_CELLS_PER_THREAD)
+        run_in_chunks(_kernels.agreement_of_hits, cells.size, *self._flat_grids(), _flat(self.ever_hit),
+                      np.unique(parents), cells, agreement, min_chunk=MIN_CELLS_PER_THREAD)
         clock.lap("agreement")
         self._n_disputed = _kernels.unlist_agreed(cells, agreement, _flat(self.status), self.agreed_counts,
                                                   self._disputed, self._table, self._n_disputed,
@@ -289,6 +292,7 @@ class ParticleMaps:
         pad = ((0, 0), (down * cells, up * cells), (left * cells, right * cells))
         self.codes = np.pad(self.codes, pad)
         self.hits = np.pad(self.hits, pad + ((0, 0),))
+        self.ever_hit = np.pad(self.ever_hit, pad[1:])
         self.coarse = np.pad(self.coarse, ((0, 0),) + tuple((a // self.block, b // self.block) for a, b in pad[1:]))
         added = self.codes.shape[1] * self.codes.shape[2] - g.rows * g.cols
         self.counts[:, 128] += added
