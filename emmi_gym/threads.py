@@ -27,6 +27,23 @@ _threads = max(1, os.cpu_count() or 1)
 MIN_CELLS_PER_THREAD = 20000
 
 
+class _Call:
+    """A submitted call, run once by whichever thread claims it first; its result goes to ``future``."""
+
+    def __init__(self, fn, args):
+        self.fn, self.args = fn, args
+        self.future: Future = Future()
+        self._claim = threading.Lock()
+
+    def run_unless_taken(self) -> None:
+        if not self._claim.acquire(blocking=False):  # another thread has it
+            return
+        try:
+            self.future.set_result(self.fn(*self.args))
+        except BaseException as error:  # handed to the caller, which raises it
+            self.future.set_exception(error)
+
+
 class _DaemonPool:
     """Worker threads that take calls from one queue and never keep the process alive."""
 
@@ -37,10 +54,10 @@ class _DaemonPool:
             threading.Thread(target=self._work, name=f"emmi-kernel-{k}", daemon=True).start()
         self.workers = workers
 
-    def submit(self, fn, *args) -> Future:
-        future: Future = Future()
-        self._calls.put((future, fn, args))
-        return future
+    def submit(self, fn, *args) -> _Call:
+        call = _Call(fn, args)
+        self._calls.put(call)
+        return call
 
     def shutdown(self) -> None:
         for _ in range(self.workers):
@@ -48,12 +65,7 @@ class _DaemonPool:
 
     def _work(self) -> None:
         while (call := self._calls.get()) is not None:
-            future, fn, args = call
-            if future.set_running_or_notify_cancel():
-                try:
-                    future.set_result(fn(*args))
-                except BaseException as error:  # handed to the caller, which raises it
-                    future.set_exception(error)
+            call.run_unless_taken()
 
 
 _pool: _DaemonPool | None = None
@@ -86,16 +98,19 @@ def chunk_bounds(n: int, min_chunk: int = 1) -> list[tuple[int, int]]:
 
 
 def run_calls(calls: list[tuple]) -> list:
-    """Run each call ``(function, *args)`` at once on the pool (this thread takes the first); their
-    results, in order."""
+    """Run each call ``(function, *args)`` at once on the pool: this thread takes the first, then, in
+    order, those no pool thread has started (so calls of unequal length, or more calls than threads,
+    keep every thread busy); their results, in order."""
     global _pool
-    if len(calls) == 1:
-        return [calls[0][0](*calls[0][1:])]
+    if len(calls) == 1 or _threads == 1:
+        return [call[0](*call[1:]) for call in calls]
     if _pool is None or _pool.pid != os.getpid():  # none yet, or a fork's copy of the parent's
         _pool = _DaemonPool(_threads - 1)
-    futures = [_pool.submit(*call) for call in calls[1:]]
+    submitted = [_pool.submit(*call) for call in calls[1:]]
     first = calls[0][0](*calls[0][1:])
-    return [first] + [future.result() for future in futures]
+    for call in submitted:
+        call.run_unless_taken()
+    return [first] + [call.future.result() for call in submitted]
 
 
 def run_in_chunks(kernel, n: int, *args, min_chunk: int = 1) -> None:

@@ -142,6 +142,34 @@ def test_chunks_cover_the_items_once_in_order_the_caller_s_first_and_largest():
         set_kernel_threads(threads)
 
 
+def test_the_caller_runs_the_calls_no_pool_thread_has_started():
+    """With the pool's one thread held in a long call, the caller runs the later calls itself (and
+    each call runs once, results in order), instead of waiting for the pool."""
+    import threading
+
+    from emmi_gym.threads import kernel_threads, run_calls, set_kernel_threads
+
+    started, release = threading.Event(), threading.Event()
+
+    def held():
+        started.set()
+        release.wait(20)
+        return threading.current_thread().name
+
+    def last():
+        release.set()
+        return threading.current_thread().name
+
+    threads = kernel_threads()
+    try:
+        set_kernel_threads(2)
+        ran = run_calls([(started.wait, 20), (held,), (lambda: threading.current_thread().name,), (last,)])
+    finally:
+        set_kernel_threads(threads)
+    main = threading.current_thread().name
+    assert ran[0] is True and ran[1] != main and ran[2:] == [main, main]
+
+
 def test_same_seed_same_filter_bit_for_bit_on_any_number_of_threads():
     from emmi_gym.threads import kernel_threads, set_kernel_threads
 
@@ -272,7 +300,7 @@ def test_incremental_emmi_equals_a_full_recomputation(seed):
             np.testing.assert_array_equal(maps.codes, before[0][parents])
             np.testing.assert_array_equal(maps.hits, before[1][parents])
             np.testing.assert_array_equal(maps.counts, before[2][parents])
-            assert list(maps.resample_ms) == ["order", "copies", "table", "agreement", "unlisting"]
+            assert list(maps.resample_ms) == ["order", "table", "agreement", "copies and unlisting"]
             assert all(ms >= 0.0 for ms in maps.resample_ms.values())
         if step == 3:
             maps.grow_to_contain(-0.5, -0.5, 7.5, 6.5, chunk=1.0)

@@ -355,12 +355,13 @@ def record_agreement(cells, agreement, rows, status, agreed_counts, disputed, ta
     return n_disputed
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def unlist_agreed(cells, agreement, status, agreed_counts, disputed, table, n_disputed, position):
     """After a resampling: record the agreed ones among ``cells`` (all listed as disputed; ``agreement``
     from :func:`agreement_of_hits`) as :func:`record_agreement` would, and drop them from the list
     and the table: each hole filled from the list's end when few go, or, when many go (as at a
-    loop's closure), in one pass that reads the list front to back. Returns the new length."""
+    loop's closure), in one pass that reads the list front to back. Returns the new length. It
+    touches no grid, so it may run on a thread beside :func:`resample_cells`."""
     agreed = 0
     for k in range(cells.size):
         code = agreement[k]

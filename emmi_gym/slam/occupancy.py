@@ -106,8 +106,9 @@ class ParticleMaps:
         self._n_disputed = 0
         self._scratch: list[_InsertionScratch] = []
         self._gaps: tuple[np.ndarray, np.ndarray] | None = None  # (beam angles, their beam_gaps) of the last scan
-        #: The last resampling's phases (ms): ordering the disputed cells, copying the dead particles'
-        #: cells, moving the table's columns, comparing mean hit points where codes now agree, unlisting.
+        #: The last resampling's phases (ms): ordering the disputed cells, moving the table's columns,
+        #: comparing mean hit points where codes now agree, copying the dead particles' cells beside
+        #: unlisting those that agree.
         self.resample_ms: dict[str, float] = {}
         self._expected: np.ndarray | None = None  # the expected map as of the last expected_map() call
         self._changed: list[np.ndarray] = []  # cells whose agreement may have changed since that call
@@ -208,8 +209,9 @@ class ParticleMaps:
         disputed cells are copied (elsewhere all grids already hold the same values), in spans
         of a row (``_kernels.copy_spans``: the agreed cells between come along, unchanged), the
         disputed cells' table takes the same copies, and the agreement is re-derived among the
-        survivors for the cells whose codes now agree (the others stay disputed). How long each
-        phase took is left in :attr:`resample_ms`."""
+        survivors for the cells whose codes now agree (the others stay disputed). The grids' copies
+        and unlisting the cells that now agree touch different arrays: they share the kernel
+        threads. How long each phase took is left in :attr:`resample_ms`."""
         parents = np.ascontiguousarray(parents, dtype=np.int64)
         if parents.shape != (self.n_particles,) or not np.all((parents >= 0) & (parents < self.n_particles)):
             raise ValueError(f"parents must be {self.n_particles} particle indices, got {parents!r:.200}")
@@ -217,15 +219,10 @@ class ParticleMaps:
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
         clock = _PhaseClock()
+        candidates = np.empty(self._n_disputed, dtype=np.int32)
         spans = _kernels.copy_spans(_kernels.sorted_cells(self.disputed_cells), self.geometry.cols, self.block,
                                     _kernels.SPAN_GAP)
         clock.lap("order")
-        dead = np.flatnonzero(parents != np.arange(self.n_particles))
-        run_in_chunks(_kernels.resample_cells, dead.size, *self._flat_grids(), _flat(self.coarse, self.n_particles),
-                      spans, dead, parents)
-        self.counts = self.counts[parents]
-        clock.lap("copies")
-        candidates = np.empty(self._n_disputed, dtype=np.int32)
         chunks = chunk_bounds(self._n_disputed, MIN_CELLS_PER_THREAD)
         found = run_calls([(_kernels.resample_rows, start, stop, self._table, parents, self._disputed, candidates)
                            for start, stop in chunks])
@@ -236,11 +233,15 @@ class ParticleMaps:
         run_in_chunks(_kernels.agreement_of_hits, cells.size, *self._flat_grids(), _flat(self.ever_hit),
                       np.unique(parents), cells, agreement, min_chunk=MIN_CELLS_PER_THREAD)
         clock.lap("agreement")
-        self._n_disputed = _kernels.unlist_agreed(cells, agreement, _flat(self.status), self.agreed_counts,
-                                                  self._disputed, self._table, self._n_disputed,
-                                                  _flat(self._position))
+        dead = np.flatnonzero(parents != np.arange(self.n_particles))
+        grids = (*self._flat_grids(), _flat(self.coarse, self.n_particles))
+        self._n_disputed, *_ = run_calls(
+            [(_kernels.unlist_agreed, cells, agreement, _flat(self.status), self.agreed_counts, self._disputed,
+              self._table, self._n_disputed, _flat(self._position))] +
+            [(_kernels.resample_cells, k, k + 1, *grids, spans, dead, parents) for k in range(dead.size)])
+        self.counts = self.counts[parents]
         self._note_changed(cells)
-        clock.lap("unlisting")
+        clock.lap("copies and unlisting")
         self.resample_ms = clock.laps
 
     def expected_map(self, weights: np.ndarray) -> np.ndarray:
