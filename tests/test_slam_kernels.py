@@ -12,7 +12,7 @@ from emmi_gym.certainty import _kernels as certainty_kernels
 from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam import _kernels as K
 from emmi_gym.slam import _matching as MT
-from emmi_gym.slam._memcpy import copy_rows
+from emmi_gym.slam._memory import copy_rows, prefetch_row
 from emmi_gym.slam.occupancy import beam_gaps
 from emmi_gym.slam.resampling import systematic_resample
 
@@ -447,6 +447,22 @@ def test_copy_rows_copies_whole_rows_start_to_stop_and_nothing_else():
             expected = np.zeros_like(source)
             expected[start:stop] = source[start:stop]
             np.testing.assert_array_equal(target, expected)
+
+
+def test_prefetch_row_changes_nothing():
+    """A cache hint: the kernel that asks for rows ahead reads and returns exactly what it would without."""
+    @nb.njit
+    def total_with_hints(values, rows):
+        total = 0
+        for k in range(rows.size):
+            if k + 3 < rows.size:
+                prefetch_row(values, rows[k + 3])
+            total += values[rows[k]].sum()
+        return total
+
+    values = np.arange(60, dtype=np.int64).reshape(20, 3)
+    rows = np.array([5, 0, 19, 7, 7, 12], dtype=np.int64)
+    assert total_with_hints(values, rows) == values[rows].sum()
 
 
 def test_resample_rows_copy_the_parents_columns_and_name_the_cells_that_agree():

@@ -19,7 +19,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ._memcpy import copy_rows
+from ._memory import copy_rows, prefetch_row
 
 #: Cells remember the mean of their last this-many hits (a running mean with a capped count).
 HIT_COUNT_CAP = 32
@@ -251,6 +251,10 @@ def merge_touched(touched, n_touched, stamp, first, other, n_other):
 
 #: ``status`` of a cell on which the particles' grids differ (agreeing cells hold their common code).
 DISPUTED = 1000
+#: Cells ahead whose mean hit points :func:`agreement_of_hits` asks the caches for (``prefetch_row``):
+#: 16 took 1.9 ms with the caches cold on the 60 m building's collapse, against 2.9 ms without, and
+#: 2.3 and 1.9 ms for 4 and 64.
+PREFETCH_AHEAD = 16
 
 
 @nb.njit(cache=True, inline="always")
@@ -297,6 +301,9 @@ def agreement_of_hits(start, stop, codes, hits, ever_hit, particles, cells, out)
     ``ever_hit`` (most cells that come to agree lie in open space, where no scan ever ended)."""
     first = particles[0]
     for k in range(start, stop):
+        if k + PREFETCH_AHEAD < stop and ever_hit[cells[k + PREFETCH_AHEAD]]:
+            for j in range(particles.size):
+                prefetch_row(hits[particles[j]], cells[k + PREFETCH_AHEAD])
         cell = cells[k]
         out[k] = codes[first, cell]
         if not ever_hit[cell]:

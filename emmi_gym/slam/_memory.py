@@ -1,13 +1,19 @@
-"""``copy_rows``: ``memcpy`` for numba kernels.
+"""Memory intrinsics for numba kernels: ``copy_rows`` (``memcpy``) and ``prefetch_row``.
 
 Numba compiles a slice assignment (``dst[a:b] = src[a:b]``) into an element-by-element
 loop, and LLVM did not vectorise that loop, nor a hand-written one, over the particles'
 grids: at resampling, copying spans of a few hundred bytes that way ran at about 2 GB/s,
-fifteen times slower than ``memcpy`` on the same spans. This intrinsic emits LLVM's
-``memcpy`` itself, as NumPy's own copies do."""
+fifteen times slower than ``memcpy`` on the same spans. ``copy_rows`` emits LLVM's
+``memcpy`` itself, as NumPy's own copies do.
+
+Comparing a cell across nine particles' grids at resampling waits on nine cache misses, grids
+megabytes apart; the hardware prefetcher does not follow such gathers. ``prefetch_row`` asks for
+a row some cells ahead (LLVM's ``prefetch``), so that the misses overlap: a third less time
+there with the caches cold, as they are at a resampling."""
 
 from __future__ import annotations
 
+from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
@@ -35,3 +41,25 @@ def copy_rows(typingctx, dst, src, start, stop):
         return context.get_dummy_value()
 
     return types.void(dst, src, start, stop), codegen
+
+
+@intrinsic
+def prefetch_row(typingctx, array, index):
+    """Ask the cache for row ``index`` of the C-contiguous ``array`` (a hint: it changes no result; the caller
+    keeps ``0 <= index < len``)."""
+    if not (isinstance(array, types.Array) and array.layout == "C" and array.ndim >= 1 and
+            isinstance(index, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0])
+        row = context.cast(builder, args[1], signature.args[1], types.intp)
+        address = builder.gep(builder.bitcast(data.data, cgutils.voidptr_t),
+                              [builder.mul(row, builder.extract_value(data.strides, 0))])
+        i32 = ir.IntType(32)
+        prefetch = builder.module.declare_intrinsic("llvm.prefetch", [cgutils.voidptr_t],
+                                                    ir.FunctionType(ir.VoidType(), [cgutils.voidptr_t, i32, i32, i32]))
+        builder.call(prefetch, [address, i32(0), i32(3), i32(1)])  # read, keep in all levels, data
+        return context.get_dummy_value()
+
+    return types.void(array, index), codegen
