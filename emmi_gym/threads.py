@@ -3,7 +3,9 @@ matching and map copies, the expected map's disputed cells.
 
 The items are split into chunks that run at once on a thread pool, each chunk one call of a
 numba kernel compiled with ``nogil=True`` that writes only its own items' results: the result
-is the same whatever the number of threads. Python threads rather than numba's ``parallel=True``:
+is the same whatever the number of threads (or whichever thread runs a call: the calling thread,
+once done with its own, runs the calls no pool thread has started). Calls of different kernels
+that touch different arrays may share the pool the same way. Python threads rather than numba's ``parallel=True``:
 numba's OpenMP layer aborts a process that forks after using it (gymnasium's
 ``AsyncVectorEnv`` and ``ProcessPoolExecutor`` fork on Linux), its work-queue layer gained little
 here, and the TBB layer is a separate install. The pool is made per process, on first use.

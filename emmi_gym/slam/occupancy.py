@@ -219,10 +219,10 @@ class ParticleMaps:
             raise ValueError("parents must keep every survivor in its own slot (parents[parents] == parents); "
                              "arrange a draw with resampling.survivors_in_place")
         clock = _PhaseClock()
-        candidates = np.empty(self._n_disputed, dtype=np.int32)
         spans = _kernels.copy_spans(_kernels.sorted_cells(self.disputed_cells), self.geometry.cols, self.block,
                                     _kernels.SPAN_GAP)
         clock.lap("order")
+        candidates = np.empty(self._n_disputed, dtype=np.int32)
         chunks = chunk_bounds(self._n_disputed, MIN_CELLS_PER_THREAD)
         found = run_calls([(_kernels.resample_rows, start, stop, self._table, parents, self._disputed, candidates)
                            for start, stop in chunks])
