@@ -7,7 +7,8 @@ they know arrays, not worlds or filters.
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage, spatial
+import numba as nb
+from scipy import ndimage
 
 from .certainty import DEFAULT_OBSERVED_TOL, observed_cells
 from .grid import GridGeometry
@@ -112,10 +113,15 @@ def map_accuracy(probabilities: np.ndarray, truth_grid: np.ndarray, *, geometry:
         if geometry is None:
             raise ValueError("map_accuracy with a transform needs the grid's geometry")
         truth_grid = labels_in_map_frame(truth_grid, geometry, transform, unknown)
-    known = observed_cells(p, observed_tol) & (truth_grid != unknown)
+    return accuracy_of_labels(map_labels(p, observed_tol), truth_grid, unknown, occupied)
+
+
+def accuracy_of_labels(labels: np.ndarray, truth_grid: np.ndarray, unknown: int = -1, occupied: int = 1) -> float:
+    """:func:`map_accuracy` of a map already labelled by :func:`map_labels` (on the truth's grid)."""
+    known = (labels >= 0) & (truth_grid != unknown)
     if not known.any():
         return 0.0
-    return float(np.mean((p[known] > 0.5) == (truth_grid[known] == occupied)))
+    return float(np.mean((labels[known] == 1) == (truth_grid[known] == occupied)))
 
 
 #: How far (m) a map's wall cell may lie from the oracle map's nearest wall and still count as the same
@@ -155,7 +161,15 @@ def oracle_scores(probabilities: np.ndarray, oracle: np.ndarray, resolution: flo
                   tolerance: float = WALL_TOLERANCE, observed_tol: float = DEFAULT_OBSERVED_TOL) -> tuple[float, float]:
     """(:func:`oracle_accuracy`, :func:`wall_consistency`), labelling each map once."""
     _check_same_grid(probabilities, oracle)
-    mine, truth = map_labels(probabilities, observed_tol), map_labels(oracle, observed_tol)
+    return oracle_scores_of_labels(map_labels(probabilities, observed_tol), map_labels(oracle, observed_tol),
+                                   resolution, tolerance)
+
+
+def oracle_scores_of_labels(mine: np.ndarray, truth: np.ndarray, resolution: float,
+                            tolerance: float = WALL_TOLERANCE) -> tuple[float, float]:
+    """:func:`oracle_scores` of two maps already labelled by :func:`map_labels` (the environment labels
+    each map once per filter update, for these and its coverage and accuracy)."""
+    _check_same_grid(mine, truth)
     return _agreement(mine, truth), _walls_near(mine, truth, resolution, tolerance)
 
 
@@ -172,11 +186,30 @@ def _agreement(mine: np.ndarray, truth: np.ndarray) -> float:
 
 
 def _walls_near(mine: np.ndarray, truth: np.ndarray, resolution: float, tolerance: float) -> float:
-    walls_here = np.argwhere(mine == 1)
-    if not len(walls_here):
-        return 1.0
-    true_walls = np.argwhere(truth == 1)
-    if not len(true_walls):
-        return 0.0
-    distance, _ = spatial.cKDTree(true_walls).query(walls_here, distance_upper_bound=tolerance / resolution + 1e-9)
-    return float(np.mean(np.isfinite(distance)))
+    """Share of ``mine``'s wall cells with a wall cell of ``truth`` within ``tolerance`` metres (centre to
+    centre; 1.0 when ``mine`` has none, 0.0 when only ``truth`` has none)."""
+    reach = tolerance / resolution + 1e-9
+    k = int(np.floor(reach))
+    rows, cols = np.mgrid[-k:k + 1, -k:k + 1]
+    within = rows ** 2 + cols ** 2 <= reach ** 2
+    walls, near = _count_walls_near(mine, truth, np.column_stack([rows[within], cols[within]]))
+    return 1.0 if walls == 0 else near / walls
+
+
+@nb.njit(cache=True)
+def _count_walls_near(mine, truth, offsets):
+    """(wall cells of ``mine``, those of them with a wall cell of ``truth`` at one of ``offsets`` (row, column)
+    from them): a pass over the grid, and a few reads per wall."""
+    h, w = mine.shape
+    walls = near = 0
+    for row in range(h):
+        for col in range(w):
+            if mine[row, col] != 1:
+                continue
+            walls += 1
+            for k in range(offsets.shape[0]):
+                r, c = row + offsets[k, 0], col + offsets[k, 1]
+                if 0 <= r < h and 0 <= c < w and truth[r, c] == 1:
+                    near += 1
+                    break
+    return walls, near

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .evaluation import map_labels
 from .slam.occupancy import ParticleMaps
 from .slam.rbpf import RBPF
 
@@ -25,6 +26,8 @@ class OracleMap:
     def __init__(self, rbpf: RBPF):
         self._rbpf = rbpf
         self.maps = ParticleMaps(rbpf.geometry, 1, rbpf.cell_codes, rbpf.config.coarse_block())
+        # map_labels of each of the 256 codes, indexed by the code's byte read as unsigned
+        self._label_of_byte = np.roll(map_labels(rbpf.cell_codes.probability), -128)
 
     def insert(self, true_pose, ranges: np.ndarray, angles: np.ndarray) -> None:
         """Insert a scan at the true pose, as the filter inserts it at each particle's pose."""
@@ -36,3 +39,8 @@ class OracleMap:
     def probabilities(self) -> np.ndarray:
         """The oracle map's occupancy probabilities (H, W)."""
         return self.maps.probabilities(0)
+
+    def labels(self) -> np.ndarray:
+        """:func:`~emmi_gym.evaluation.map_labels` of :meth:`probabilities` (-1 unobserved, 0 free, 1 occupied),
+        read off a table of the codes (the environment's coverage and scores need these, every filter update)."""
+        return self._label_of_byte[self.maps.codes[0].view(np.uint8)]

@@ -116,12 +116,21 @@ def bench(env_id: str, n_steps: int) -> tuple[float, float, dict, int]:
 def against(env_id: str, n_steps: int, code: str) -> None:
     """The same episodes played by this code and by the code in ``code`` (a checkout of another commit), in
     two processes that take turns, one env step each: whatever the machine does meanwhile slows both alike.
-    Prints the ratio of their times (the first step of each, which loads the numba kernels, left out)."""
+    Prints the ratio of their times. Each process first plays the steps once untimed (both at once): a fresh
+    checkout compiles each numba kernel on its first call, which may come late in an episode (a first
+    resampling), and once made a fresh worktree look four times slower."""
     if not (Path(code) / "emmi_gym" / "__init__.py").is_file():  # else the worker would import this code
         raise SystemExit(f"--against {code}: no emmi_gym package there (make one with git worktree add DIR REV)")
     workers = [subprocess.Popen([sys.executable, __file__, "--worker", env_id], stdin=subprocess.PIPE,
                                 stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=path))
                for path in (str(REPO), str(Path(code).resolve()))]
+    for worker in workers:
+        worker.stdin.write(f"warm {n_steps}\n")
+        worker.stdin.flush()
+    for w, worker in enumerate(workers):
+        if not worker.stdout.readline():
+            raise SystemExit(f"the worker running {env_id} with the code in "
+                             f"{'this checkout' if w == 0 else code} stopped while warming up")
     times = np.zeros((2, n_steps))
     for k in range(n_steps):
         for w, worker in enumerate(workers):
@@ -135,16 +144,24 @@ def against(env_id: str, n_steps: int, code: str) -> None:
     for worker in workers:
         worker.stdin.close()
         worker.wait()
-    this, other = times[:, 1:].sum(axis=1)
-    print(f"{env_id}: {n_steps - 1} env steps in {this:.1f} s with this code, {other:.1f} s with {code}: "
+    this, other = times.sum(axis=1)
+    print(f"{env_id}: {n_steps} env steps in {this:.1f} s with this code, {other:.1f} s with {code}: "
           f"{other / this:.2f} times as fast")
 
 
 def worker(env_id: str) -> None:
-    """The other end of :func:`against`: one env step per line read, its wall time written back."""
+    """The other end of :func:`against`: "warm N" plays N steps untimed and starts the episodes again;
+    "step" plays one step and writes its wall time back."""
     episodes = play(env_id)
-    for _ in sys.stdin:
-        print(next(episodes)[0], flush=True)
+    for line in sys.stdin:
+        if line.startswith("warm"):
+            for _ in zip(range(int(line.split()[1])), episodes):
+                pass
+            episodes.close()
+            episodes = play(env_id)
+            print("warm", flush=True)
+        else:
+            print(next(episodes)[0], flush=True)
 
 
 def report(env_id: str, n_steps: int, repeats: int) -> None:

@@ -25,13 +25,25 @@ def loop_run():
     return rec.true_poses[steps], rec.scans[steps], laser.angles, geometry
 
 
-def map_from(poses, scans, angles, geometry) -> np.ndarray:
+def oracle_from(poses, scans, angles, geometry) -> OracleMap:
     rbpf = RBPF(RBPFConfig(particles=1), max_range=LaserConfig().max_range, geometry=geometry)
     rbpf.reset(poses[0], np.random.default_rng(0))
     oracle = OracleMap(rbpf)
     for pose, scan in zip(poses, scans):
         oracle.insert(pose, scan, angles)
-    return oracle.probabilities()
+    return oracle
+
+
+def map_from(poses, scans, angles, geometry) -> np.ndarray:
+    return oracle_from(poses, scans, angles, geometry).probabilities()
+
+
+def test_labels_read_off_the_codes_are_those_of_the_probabilities(loop_run):
+    poses, scans, angles, geometry = loop_run
+    oracle = oracle_from(poses, scans, angles, geometry)
+    labels = oracle.labels()
+    assert np.array_equal(labels, map_labels(oracle.probabilities()))
+    assert set(np.unique(labels)) == {-1, 0, 1}  # all three kinds occur, so the table's order is tested
 
 
 def test_a_perfectly_localised_map_scores_one_and_a_rotated_one_lower(loop_run):
@@ -80,3 +92,21 @@ def test_env_reports_oracle_scores():
     # before the robot moves, every particle and the oracle inserted the one scan at the same pose
     _, info = env.reset(seed=0, options={"start_at": "start"})
     assert info["oracle_accuracy"] == 1.0 and info["wall_consistency"] == 1.0
+
+
+@pytest.mark.parametrize("resolution, tolerance", [(0.1, 0.2), (0.05, 0.2), (0.1, 0.0), (0.025, 0.1), (0.1, 0.45)])
+def test_wall_consistency_counts_the_walls_within_the_tolerance_centre_to_centre(resolution, tolerance):
+    rng = np.random.default_rng(int(tolerance * 100) + int(1 / resolution))
+    for _ in range(20):
+        shape = tuple(rng.integers(1, 30, 2))
+        mine = np.where(rng.random(shape) < 0.2, 0.95, np.where(rng.random(shape) < 0.5, 0.1, 0.5))
+        oracle = np.where(rng.random(shape) < 0.1, 0.95, 0.1)
+        walls, true_walls = np.argwhere(mine > 0.5), np.argwhere(oracle > 0.5)
+        if not len(walls):
+            expected = 1.0
+        elif not len(true_walls):
+            expected = 0.0
+        else:
+            distance = np.hypot(*(walls[:, None, :] - true_walls[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+            expected = float(np.mean(distance * resolution <= tolerance + 1e-9))
+        assert wall_consistency(mine, oracle, resolution, tolerance=tolerance) == pytest.approx(expected)

@@ -15,7 +15,7 @@ from emmi_gym.world.generator import GeneratorConfig, generate_world
 from emmi_gym.world.ground_truth import FREE, OCCUPIED, UNKNOWN, is_reachable, rasterise
 from emmi_gym.world.laser import LaserConfig
 from emmi_gym.world.loader import builtin_worlds, load_world, parse_world
-from emmi_gym.motion import compose_motion, relative_motion
+from emmi_gym.motion import compose_local, compose_motion, relative_motion, wrap_angle
 from emmi_gym.world.odometry import OdometryNoise, noisy_motion
 from emmi_gym.world.simulator import RobotConfig, Simulator
 from emmi_gym.world.spec import ROBOT_RADIUS, WorldFileError
@@ -310,6 +310,22 @@ def test_relative_and_composed_motion_are_inverse():
         b = a + rng.uniform(-0.3, 0.3, 3)
         b[2] = (b[2] + np.pi) % (2 * np.pi) - np.pi
         np.testing.assert_allclose(compose_motion(a, *relative_motion(a, b)), b, atol=1e-9)
+
+
+def test_one_pose_in_floats_gives_the_numbers_of_the_array_form():
+    """compose_motion, compose_local and wrap_angle take a float path for one pose (the simulator's and the
+    pose estimate's, every step): the same arithmetic as on a batch of poses. wrap_angle's is exact anywhere;
+    the compositions' cos and sin come from the C library, not NumPy's vectorised loops, which may differ
+    in the last bit on some processors (not on this project's machines, where the episodes stayed the same)."""
+    rng = np.random.default_rng(1)
+    poses, motions = rng.uniform(-20, 20, (2000, 3)), rng.uniform(-4, 4, (2000, 3))
+    batch_motion = compose_motion(poses, motions[:, 0], motions[:, 1], motions[:, 2])
+    batch_local = compose_local(poses, motions)
+    for k in range(len(poses)):
+        np.testing.assert_array_max_ulp(compose_motion(poses[k], *map(float, motions[k])), batch_motion[k], 1)
+        np.testing.assert_array_max_ulp(compose_local(poses[k], motions[k]), batch_local[k], 1)
+        angle = float(motions[k, 0] * 7)
+        assert isinstance(wrap_angle(angle), float) and wrap_angle(angle) == wrap_angle(np.array([angle]))[0]
 
 
 def test_noise_free_odometry_is_exact():

@@ -8,7 +8,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .. import certainty
-from ..evaluation import absolute_trajectory_error, map_accuracy, oracle_scores
+from ..evaluation import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
 from ..grid import GridGeometry
 from ..navigation.candidates import Target
 from ..oracle import OracleMap
@@ -242,15 +242,14 @@ class EmmiEnv(gym.Env):
         self._stale_map_image = True
         self._metrics = self.slam.measure()
         self._expected = self.slam.expected_map().copy()  # as of this refresh (the filter's own changes)
-        oracle = self._oracle.probabilities()
+        # each map labelled once (unobserved, free, occupied), for coverage and every score
+        mine, seen = map_labels(self._expected), self._oracle.labels()
         # coverage: the reachable free space the scans have swept, read on the oracle map (the same scans at
         # the true poses), so that it measures exploration and not how well the estimated map lines up
         # with the floor plan (a map turned by a few degrees would otherwise never reach the target)
-        swept_free = certainty.observed_cells(oracle) & (oracle < 0.5)
-        self._coverage = float(np.count_nonzero(swept_free & self._reachable)) / self._n_reachable
-        self._map_accuracy = map_accuracy(self._expected, self.truth.grid)
-        self._oracle_accuracy, self._wall_consistency = oracle_scores(self._expected, oracle,
-                                                                      self.geometry.resolution)
+        self._coverage = float(np.count_nonzero((seen == 0) & self._reachable)) / self._n_reachable
+        self._map_accuracy = accuracy_of_labels(mine, self.truth.grid)
+        self._oracle_accuracy, self._wall_consistency = oracle_scores_of_labels(mine, seen, self.geometry.resolution)
         self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
                                               align=False)
         if self.config.action_mode == "waypoint":

@@ -35,6 +35,11 @@ class RobotConfig:
             raise ValueError(f"robot physics_substeps must be a positive integer, got {self.physics_substeps!r}")
 
 
+def _clipped(value: float, limit: float) -> float:
+    """``value`` clipped to [-limit, limit] as a float (NaN stays NaN, as with ``np.clip``)."""
+    return min(max(float(value), -limit), limit)
+
+
 @dataclass
 class StepResult:
     """What one control period produced."""
@@ -112,24 +117,25 @@ class Simulator:
     def step(self, v: float, omega: float) -> StepResult:
         """Drive at (v, omega), clipped to the robot's limits, for one control period."""
         cfg = self.robot_config
-        v = float(np.clip(v, -cfg.max_speed, cfg.max_speed))
-        omega = float(np.clip(omega, -cfg.max_turn_rate, cfg.max_turn_rate))
+        v = _clipped(v, cfg.max_speed)
+        omega = _clipped(omega, cfg.max_turn_rate)
+        body, control = self.body, self.control_body
         before = self.true_pose
         dt = cfg.control_period / cfg.physics_substeps
         collided = False
         for _ in range(cfg.physics_substeps):
-            heading = self.body.angle
+            heading = body.angle
+            cos, sin = math.cos(heading), math.sin(heading)
             # re-anchor the control body on the robot: the pivot then acts on the commanded
             # velocity only, not on how far the control body got ahead into a wall
-            self.control_body.position = self.body.position
-            self.control_body.velocity = (v * math.cos(heading), v * math.sin(heading))
-            self.control_body.angular_velocity = omega
+            control.position = body.position
+            control.velocity = (v * cos, v * sin)
+            control.angular_velocity = omega
             self.space.step(dt)
             # a collision is driving into a wall, not resting beside it or driving away (standing
             # still, or once a collision is known, the contacts need not be read)
             if v != 0.0 and not collided:
-                collided = any(n.x * v * math.cos(heading) + n.y * v * math.sin(heading) > 1e-6
-                               for n in self._contact_normals())
+                collided = any(n.x * v * cos + n.y * v * sin > 1e-6 for n in self._contact_normals())
         after = self.true_pose
         reading = noisy_motion(*relative_motion(before, after), self.odometry_noise, self.rng)
         self.odometry_pose = compose_motion(self.odometry_pose, *reading)
