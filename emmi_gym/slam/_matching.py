@@ -34,6 +34,10 @@ import numpy as np
 
 from ._kernels import OFFSET_SCALE
 
+#: A mean hit point's offset in its cell for each int8 code, indexed by code + 128: the quotients a
+#: division by ``OFFSET_SCALE`` gives, read from a table (an L1 load, not a division, per cell looked at).
+HIT_OFFSET = np.arange(-128, 128) / OFFSET_SCALE
+
 #: Scan-matching settings in grid units, built by :func:`match_settings`.
 MatchSettings = namedtuple("MatchSettings", [
     "origin_x", "origin_y", "resolution",
@@ -110,13 +114,13 @@ def _try_cell(grid, hits, row, col, side_x, side_y, hx, hy, best):
     a coin toss to the branch predictor): half the time of the branching form per beam.
     """
     surface = (grid[row, col] > 0) & ((grid[row, col + side_x] < 0) | (grid[row + side_y, col] < 0))
-    mx = col + 0.5 + np.float64(hits[row, col, 0]) / OFFSET_SCALE
-    my = row + 0.5 + np.float64(hits[row, col, 1]) / OFFSET_SCALE
+    mx = col + 0.5 + HIT_OFFSET[np.int64(hits[row, col, 0]) + 128]
+    my = row + 0.5 + HIT_OFFSET[np.int64(hits[row, col, 1]) + 128]
     d2 = (mx - hx) ** 2 + (my - hy) ** 2
     return d2 if surface and d2 < best else best
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def nearest_surface_d2(grid, hits, hx, hy, side_x, side_y, window):
     """Squared distance (cells^2) from the end point (hx, hy) to the nearest surface point within
     ``window`` cells (Chebyshev), inf if none; the caller keeps window + 1 cells from the edge.
@@ -217,7 +221,7 @@ def _prior_quadratic(x, y, theta, mean, precision):
             + d2 * (p[2, 0] * d0 + p[2, 1] * d1 + p[2, 2] * d2))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def log_target(grid, hits, pose, offsets, n_beams, s, mean, precision, floor):
     """log p(z | m, x) + log p(x | x_{t-1}, u) up to a constant: the optimal proposal's log-density.
 
@@ -233,7 +237,7 @@ def log_target(grid, hits, pose, offsets, n_beams, s, mean, precision, floor):
     return ll - prior, matched
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _objective(coarse_stage, grid, hits, coarse, pose, offsets, n_beams, s, mean, precision, floor):
     """What a climb maximises: :func:`coarse_score` in the coarse stage, else :func:`log_target`
     (cut short at ``floor``). Returns (value, matched beams; 0 in the coarse stage)."""
