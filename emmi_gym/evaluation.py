@@ -10,7 +10,7 @@ import numpy as np
 import numba as nb
 from scipy import ndimage
 
-from .certainty import DEFAULT_OBSERVED_TOL, observed_cells
+from .certainty import DEFAULT_OBSERVED_TOL, observation_labels
 from .grid import GridGeometry
 
 
@@ -131,10 +131,7 @@ WALL_TOLERANCE = 0.2
 
 def map_labels(probabilities: np.ndarray, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:
     """-1 (unobserved, eq. 10), 0 (free: p <= 0.5) or 1 (occupied: p > 0.5) per cell, int8."""
-    p = np.asarray(probabilities)
-    labels = (p > 0.5).astype(np.int8)
-    labels[~observed_cells(p, observed_tol)] = -1
-    return labels
+    return observation_labels(probabilities, observed_tol)
 
 
 def oracle_accuracy(probabilities: np.ndarray, oracle: np.ndarray, observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:

@@ -340,7 +340,8 @@ def test_bad_lut_is_named():
 
 
 def test_observed_cells_decide_by_the_entropy_rule_of_eq_10():
-    """The mask (|p - 0.5| outside a band, the entropy inside it) is exactly H2(p) < max_entropy_bits."""
+    """The mask (|p - 0.5| outside a band, by a kernel; the entropy inside it) is exactly H2(p) <
+    max_entropy_bits."""
     from emmi_gym.certainty.information import cell_entropy, max_entropy_bits, observed_halfwidth
 
     for tol in (0.0, 0.001, 0.05):
@@ -349,6 +350,10 @@ def test_observed_cells_decide_by_the_entropy_rule_of_eq_10():
         with np.errstate(invalid="ignore"):
             expected = cell_entropy(p) < max_entropy_bits(tol)
         assert np.array_equal(C.observed_cells(p, tol), expected)
+        # and the labels: unobserved -1, else occupied (p > 0.5) 1 or free 0, in the input's shape
+        labels = C.observation_labels(p.reshape(1, -1), tol)
+        assert labels.shape == (1, p.size) and labels.dtype == np.int8
+        assert np.array_equal(labels[0], np.where(expected, (p > 0.5).astype(np.int8), -1))
 
 
 def test_emmi_of_parts_is_the_same_on_any_number_of_threads():
@@ -375,3 +380,15 @@ def test_emmi_of_parts_is_the_same_on_any_number_of_threads():
         set_kernel_threads(threads)
     assert disputed.size > 60000 and one == three
     assert one == pytest.approx(C.emmi(grids, w, lut=lut), rel=1e-12)
+
+
+def test_the_pose_entropies_wrap_of_a_heading_difference_is_the_remainders_number():
+    """``_kernels._wrapped`` replaces (d + pi) % 2 pi - pi by one add or subtract where that is exact: the
+    same numbers, at and round the ends of that range and beyond it."""
+    from emmi_gym.certainty._kernels import _wrapped
+
+    two_pi = 2.0 * np.pi
+    edges = np.array([-two_pi, 0.0, two_pi, 2 * two_pi]) - np.pi
+    d = np.concatenate([np.random.default_rng(0).uniform(-4 * two_pi, 4 * two_pi, 20000), edges,
+                        np.nextafter(edges, np.inf), np.nextafter(edges, -np.inf), [-0.0, np.pi, -np.pi]])
+    assert [_wrapped(x) for x in d] == [(x + np.pi) % two_pi - np.pi for x in d.tolist()]

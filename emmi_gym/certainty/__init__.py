@@ -16,6 +16,7 @@ from .information import (
     map_information,
     mean_information,
     mean_information_of_code_counts,
+    observation_labels,
     observed_cells,
 )
 from .pose import DEFAULT_DET_FLOOR, joint_entropy, loop_displacement_spread, path_entropy, pose_entropy
@@ -41,6 +42,7 @@ __all__ = [
     "mean_information",
     "mean_information_of_code_counts",
     "normalize_weights",
+    "observation_labels",
     "observed_cells",
     "path_entropy",
     "pose_entropy",

@@ -146,6 +146,24 @@ def code_histogram(codes, n_codes, offset):
     return tallies.sum(axis=0)
 
 
+@nb.njit(cache=True, inline="always")
+def _wrapped(d):
+    """(d + pi) % 2 pi - pi, the same number: for d + pi in [-2 pi, 4 pi) (two headings' difference) one add
+    or subtract gives the remainder exactly as fmod does, without its call."""
+    y = d + math.pi
+    if y < 0.0:
+        if y >= -2.0 * math.pi:
+            y += 2.0 * math.pi
+        else:
+            y = y % (2.0 * math.pi)
+    elif y >= 2.0 * math.pi:
+        if y < 4.0 * math.pi:
+            y -= 2.0 * math.pi
+        else:
+            y = y % (2.0 * math.pi)
+    return y - math.pi
+
+
 @nb.njit(cache=True)
 def pose_entropies(paths, weights, det_floor, log_2pie_3):
     """Gaussian differential entropy (nats) of the weighted poses at each step of (M, T, 3) paths.
@@ -155,7 +173,6 @@ def pose_entropies(paths, weights, det_floor, log_2pie_3):
     """
     m, t_steps = paths.shape[0], paths.shape[1]
     out = np.empty(t_steps)
-    two_pi = 2.0 * math.pi
     for t in range(t_steps):
         mx = my = s = c = 0.0
         for i in range(m):
@@ -170,7 +187,7 @@ def pose_entropies(paths, weights, det_floor, log_2pie_3):
             wi = weights[i]
             dx = paths[i, t, 0] - mx
             dy = paths[i, t, 1] - my
-            dt = (paths[i, t, 2] - mt + math.pi) % two_pi - math.pi
+            dt = _wrapped(paths[i, t, 2] - mt)
             cxx += wi * dx * dx
             cxy += wi * dx * dy
             cxt += wi * dx * dt
@@ -180,3 +197,21 @@ def pose_entropies(paths, weights, det_floor, log_2pie_3):
         det = cxx * (cyy * ctt - cyt * cyt) - cxy * (cxy * ctt - cyt * cxt) + cxt * (cxy * cyt - cyy * cxt)
         out[t] = 0.5 * (log_2pie_3 + math.log(max(det, det_floor)))
     return out
+
+
+@nb.njit(cache=True)
+def label_cells(p, observed_beyond, unobserved_within, labels, band):
+    """``labels[k]``: 1 (occupied) or 0 (free) where |p - 0.5| > ``observed_beyond``, -1 (unobserved) where
+    it is at most ``unobserved_within``; the cells between (and NaN) are left to the caller, listed in
+    ``band``. Returns how many."""
+    n = 0
+    for k in range(p.size):
+        distance = abs(p[k] - 0.5)
+        if distance > observed_beyond:
+            labels[k] = 1 if p[k] > 0.5 else 0
+        elif distance <= unobserved_within:
+            labels[k] = -1
+        else:
+            band[n] = k
+            n += 1
+    return n

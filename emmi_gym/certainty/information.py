@@ -120,18 +120,29 @@ def information_and_observed(p_flat: np.ndarray, observed_tol: float) -> tuple[f
 
 
 def observed_cells(p, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:
-    """Boolean mask of the cells that count as observed in eq. (10): ``H2(p) < max_entropy_bits``.
+    """Boolean mask of the cells that count as observed in eq. (10): ``H2(p) < max_entropy_bits``
+    (see :func:`observation_labels`)."""
+    return observation_labels(p, observed_tol) >= 0
 
-    Decided by |p - 0.5| outside a band of +-10% round :func:`observed_halfwidth`, and by the
-    entropy itself inside it (the same cells, with a logarithm for few of them)."""
-    p = np.asarray(p, dtype=np.float64)
+
+def observation_labels(p, observed_tol: float = DEFAULT_OBSERVED_TOL) -> np.ndarray:
+    """Per cell, int8: -1 if unobserved in the sense of eq. (10) (``H2(p) >= max_entropy_bits``), else 1 if
+    p > 0.5 (occupied), 0 if not (free).
+
+    One pass of a kernel decides every cell by |p - 0.5| outside a band of +-10% round
+    :func:`observed_halfwidth`; the entropy itself decides the few inside it (and NaN)."""
+    p = np.ascontiguousarray(p, dtype=np.float64)
     max_bits = max_entropy_bits(observed_tol)
-    distance = np.abs(p - 0.5)
     halfwidth = observed_halfwidth(max_bits)
-    observed = distance > 1.1 * halfwidth
-    band = ~(distance <= 0.9 * halfwidth) & ~observed  # NaN included: the entropy rule decides it too
-    observed[band] = cell_entropy(p[band]) < max_bits
-    return observed
+    labels = np.empty(p.shape, dtype=np.int8)
+    flat_p, flat_labels = p.reshape(-1), labels.reshape(-1)
+    band = np.empty(flat_p.size, dtype=np.int64)
+    n = _kernels.label_cells(flat_p, 1.1 * halfwidth, 0.9 * halfwidth, flat_labels, band)
+    if n:
+        cells = band[:n]
+        values = flat_p[cells]
+        flat_labels[cells] = np.where(cell_entropy(values) < max_bits, (values > 0.5).astype(np.int8), np.int8(-1))
+    return labels
 
 
 def mean_information(p, *, logodds: bool = False, lut=None, observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:

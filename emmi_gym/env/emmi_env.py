@@ -106,7 +106,8 @@ class EmmiEnv(gym.Env):
         self.slam.reset(self.sim.odometry_pose, rng)
         self._oracle = OracleMap(self.slam)
         self.sim_steps = self.collisions = self.decisions = 0
-        self._true_at_updates: list[np.ndarray] = []
+        self._true_at_updates = np.empty((64, 3))  # the true pose at each filter update, the first _n_true rows
+        self._n_true = 0
         self._true_path = [self.sim.true_pose]
         self._blocked: list[tuple[float, float]] = []
         self._metrics = None
@@ -223,7 +224,10 @@ class EmmiEnv(gym.Env):
         metrics = self.slam.process(odometry_pose, self._scan_now(), self._angles, self.sim.time,
                                     measure=self.config.update_records)
         self._oracle.insert(true_pose, self._scan_now(), self._angles)
-        self._true_at_updates.append(true_pose)
+        if self._n_true == len(self._true_at_updates):  # doubled as needed: appending costs the same all episode
+            self._true_at_updates = np.concatenate([self._true_at_updates, np.empty_like(self._true_at_updates)])
+        self._true_at_updates[self._n_true] = true_pose
+        self._n_true += 1
         if metrics is not None:
             self._new_updates.append(metrics.measures())
         self._stale = True
@@ -241,6 +245,7 @@ class EmmiEnv(gym.Env):
         self._stale = False
         self._stale_map_image = True
         self._metrics = self.slam.measure()
+        self._certainty = obs.certainty_vector(self._metrics.emmi, self._metrics.pose_entropy)
         self._expected = self.slam.expected_map().copy()  # as of this refresh (the filter's own changes)
         # each map labelled once (unobserved, free, occupied), for coverage and every score
         mine, seen = map_labels(self._expected), self._oracle.labels()
@@ -250,7 +255,7 @@ class EmmiEnv(gym.Env):
         self._coverage = float(np.count_nonzero((seen == 0) & self._reachable)) / self._n_reachable
         self._map_accuracy = accuracy_of_labels(mine, self.truth.grid)
         self._oracle_accuracy, self._wall_consistency = oracle_scores_of_labels(mine, seen, self.geometry.resolution)
-        self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], np.array(self._true_at_updates),
+        self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], self._true_at_updates[:self._n_true],
                                               align=False)
         if self.config.action_mode == "waypoint":
             self._slots = self._navigation.targets(_EnvRobot(self), self._expected, self.slam.paths[self.slam.best],
@@ -322,7 +327,7 @@ class EmmiEnv(gym.Env):
         if cfg.observation == "image":
             return image
         observation = {"map": image, "pose": obs.pose_vector(pose, self.world.bounds),
-                       "certainty": obs.certainty_vector(self._metrics.emmi, self._metrics.pose_entropy)}
+                       "certainty": self._certainty.copy()}
         if cfg.action_mode == "waypoint":
             observation["targets"] = obs.target_features(self._slots, self._loop_spreads, pose, self.world.bounds,
                                                          self.geometry.resolution)

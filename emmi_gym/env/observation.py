@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 from gymnasium import spaces
 
@@ -50,8 +51,8 @@ class MapPooling:
     Each pixel shows its cells' most occupied value if any cell is an obstacle
     (p > 0.65), else their least occupied value if any is known free (p < 0.47), else
     127 (unknown). Picking one cell per pixel would miss walls a few cells thick
-    whenever a pixel spans several cells. The cell -> pixel ordering is computed once
-    per (grid, window) and reused.
+    whenever a pixel spans several cells. The cells of each pixel are listed once per
+    (grid, window) and a kernel pools them in one pass (:func:`_pool`).
     """
 
     def __init__(self):
@@ -66,27 +67,39 @@ class MapPooling:
         pixel = (row * size + col)[inside]
         cells = np.flatnonzero(inside)
         order = np.argsort(pixel, kind="stable")
-        self._cells, self._pixel = cells[order], pixel[order]
-        self._pixels, self._starts = np.unique(self._pixel, return_index=True)
+        self._cells = cells[order]
+        self._pixels, starts = np.unique(pixel[order], return_index=True)
+        self._bounds = np.append(starts, self._cells.size)  # pixel k's cells: _cells[_bounds[k]:_bounds[k + 1]]
         self._key = (geometry, tuple(window), size)
 
     def __call__(self, expected_map: np.ndarray, geometry: GridGeometry, window, size: int) -> np.ndarray:
         if self._key != (geometry, tuple(window), size):
             self._prepare(geometry, window, size)
-        values = expected_map.ravel()[self._cells]
         image = np.full(size * size, UNKNOWN_PIXEL, dtype=np.uint8)
-        if values.size:
-            most = np.maximum.reduceat(values, self._starts)
-            least = np.minimum.reduceat(values, self._starts)
-            pooled = np.where(most > OCCUPIED_P, most, np.where(least < FREE_P, least, 0.5))
-            image[self._pixels] = np.clip(np.floor(pooled * 255.0), 0, 255).astype(np.uint8)
+        _pool(expected_map.ravel(), self._cells, self._bounds, self._pixels, OCCUPIED_P, FREE_P, image)
         return image.reshape(size, size)
+
+
+@nb.njit(cache=True)
+def _pool(p, cells, bounds, pixels, occupied_p, free_p, image):
+    """Into ``image[pixels[k]]`` the pooled value of the cells ``cells[bounds[k]:bounds[k + 1]]`` of ``p``
+    (see :class:`MapPooling`), as floor(255 p) clipped to [0, 255]."""
+    for k in range(pixels.size):
+        most, least = -np.inf, np.inf
+        for j in range(bounds[k], bounds[k + 1]):
+            value = p[cells[j]]
+            most = max(most, value)
+            least = min(least, value)
+        pooled = most if most > occupied_p else (least if least < free_p else 0.5)
+        image[pixels[k]] = min(max(math.floor(pooled * 255.0), 0.0), 255.0)
 
 
 def _pixel(x, y, window, size: int):
     """(row, column) of the image pixels holding the points (x, y), arrays or scalars; row 0 is the top
     (north up)."""
     x0, y0, mpp = window
+    if isinstance(x, float) and isinstance(y, float) and math.isfinite(x) and math.isfinite(y):  # one point
+        return size - 1 - math.floor((y - y0) / mpp), math.floor((x - x0) / mpp)
     return (size - 1 - np.floor((y - y0) / mpp)).astype(int), np.floor((x - x0) / mpp).astype(int)
 
 
@@ -123,7 +136,7 @@ def pose_vector(pose, bounds) -> np.ndarray:
     xmin, ymin, xmax, ymax = bounds
     x = 2.0 * (pose[0] - xmin) / (xmax - xmin) - 1.0
     y = 2.0 * (pose[1] - ymin) / (ymax - ymin) - 1.0
-    return np.clip(np.array([x, y, math.cos(pose[2]), math.sin(pose[2])], dtype=np.float32), -1.0, 1.0)
+    return np.array([min(max(v, -1.0), 1.0) for v in (x, y, math.cos(pose[2]), math.sin(pose[2]))], dtype=np.float32)
 
 
 def target_features(slots, loop_spreads, pose, bounds, resolution: float) -> np.ndarray:
