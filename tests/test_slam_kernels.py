@@ -283,6 +283,27 @@ def test_scan_loglik_matches_twin(seed, radius):
     assert cut <= want[0] + 1.0 and flag == -1
 
 
+@given(st.integers(0, 2**31), st.sampled_from([0.05, 0.1, 0.15, 0.32]), st.sampled_from([0.5, 1.0, 1.5]))
+def test_shifted_logliks_are_scan_logliks_bit_for_bit(seed, radius, shift):
+    """The stencil's four moves in x and y read each beam's cells once (``_shifted_logliks``): the same
+    numbers as four calls of ``scan_loglik``, end points near the grid's edge included."""
+    rng = np.random.default_rng(seed)
+    grid, hits = random_map(rng)
+    grid[rng.random(grid.shape) < 0.5] = -50
+    x, y, theta = rng.uniform(0.3, 3.7), rng.uniform(0.3, 3.7), rng.uniform(-np.pi, np.pi)
+    ranges = rng.uniform(0.1, 2.5, 30)
+    angles = np.linspace(-np.pi, np.pi, 30, endpoint=False)
+    offsets = np.empty((30, 4))
+    n = MT.beam_offsets(theta, ranges, angles, 3.0, RES, offsets)
+    s = settings(radius)
+    gxs = x / RES + np.array([-shift, shift, 0.0, 0.0])
+    gys = y / RES + np.array([0.0, 0.0, -shift, shift])
+    got = np.empty(4)
+    MT._shifted_logliks(grid, hits, gxs, gys, offsets, n, s, got)
+    want = [MT.scan_loglik(grid, hits, gxs[k], gys[k], offsets, n, s, -np.inf)[0] for k in range(4)]
+    assert got.tolist() == want
+
+
 def twin_hill_climb(grid, hits, start, ranges, angles, mean, precision, lstep, astep, refinements, iterations):
     def value(p):
         ll, n = twin_loglik(grid, hits, p[0], p[1], p[2], ranges, angles, 3.0, 0.15, 0.075)

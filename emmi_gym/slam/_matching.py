@@ -113,11 +113,18 @@ def _try_cell(grid, hits, row, col, side_x, side_y, hx, hy, best):
     Written without branches on the cells' codes (whether a cell near a wall is a surface is
     a coin toss to the branch predictor): half the time of the branching form per beam.
     """
+    surface, mx, my = _surface_point(grid, hits, row, col, side_x, side_y)
+    d2 = (mx - hx) ** 2 + (my - hy) ** 2
+    return d2 if surface and d2 < best else best
+
+
+@nb.njit(cache=True, inline="always")
+def _surface_point(grid, hits, row, col, side_x, side_y):
+    """(whether the cell is a surface seen from the laser (see :func:`_try_cell`), its mean hit point x, y)."""
     surface = (grid[row, col] > 0) & ((grid[row, col + side_x] < 0) | (grid[row + side_y, col] < 0))
     mx = col + 0.5 + HIT_OFFSET[np.int64(hits[row, col, 0]) + 128]
     my = row + 0.5 + HIT_OFFSET[np.int64(hits[row, col, 1]) + 128]
-    d2 = (mx - hx) ** 2 + (my - hy) ** 2
-    return d2 if surface and d2 < best else best
+    return surface, mx, my
 
 
 @nb.njit(cache=True, inline="always")
@@ -462,11 +469,19 @@ def _stencil_scores(grid, cell_hits, best_pose, centre, offsets, n, s, stencil, 
     mode, mode + step). Returns (the largest score, the sum of exp(score - largest))."""
     scores[0] = centre + lognorm
     top = scores[0]
+    gxs, gys, shifted = np.empty(4), np.empty(4), np.empty(4)
+    for k in range(1, 5):  # the moves in x and y keep the heading: their beams share one look at the cells
+        gxs[k - 1] = (best_pose[0] + stencil[k, 0] - s.origin_x) / s.resolution
+        gys[k - 1] = (best_pose[1] + stencil[k, 1] - s.origin_y) / s.resolution
+    _shifted_logliks(grid, cell_hits, gxs, gys, offsets[1], n, s, shifted)
     for k in range(1, 7):
         for axis in range(3):
             pose[axis] = best_pose[axis] + stencil[k, axis]
-        t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
-        value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, mean, precision, -np.inf)
+        if k <= 4:
+            value = shifted[k - 1] - 0.5 * _prior_quadratic(pose[0], pose[1], pose[2], mean, precision)
+        else:
+            t = 0 if stencil[k, 2] < 0 else (2 if stencil[k, 2] > 0 else 1)
+            value, _ = log_target(grid, cell_hits, pose, offsets[t], n, s, mean, precision, -np.inf)
         scores[k] = value + lognorm
         if scores[k] > top:
             top = scores[k]
@@ -474,3 +489,46 @@ def _stencil_scores(grid, cell_hits, best_pose, centre, offsets, n, s, stencil, 
     for k in range(7):
         total += math.exp(scores[k] - top)
     return top, total
+
+
+@nb.njit(cache=True)
+def _shifted_logliks(grid, hits, gxs, gys, offsets, n_beams, s, out):
+    """:func:`scan_loglik` (every beam scored) with the laser at each of the four grid positions (gxs[k],
+    gys[k]), the same numbers into ``out``: each beam's surface points are read once from the cells
+    round its four end points, not searched four times. A cell outside a point's window holds no
+    surface point within the match radius of it, so taking it in changes nothing."""
+    h, w = grid.shape
+    reach = s.window + 1
+    hxs, hys, best = np.empty(4), np.empty(4), np.empty(4)
+    out[:] = 0.0
+    for b in range(n_beams):
+        side_x, side_y = int(offsets[b, 2]), int(offsets[b, 3])
+        lo_x = lo_y = w + h
+        hi_x = hi_y = -1
+        inside = True
+        for k in range(4):
+            hxs[k] = gxs[k] + offsets[b, 0]
+            hys[k] = gys[k] + offsets[b, 1]
+            cx, cy = int(math.floor(hxs[k])), int(math.floor(hys[k]))
+            inside = inside and reach <= cx < w - reach and reach <= cy < h - reach
+            lo_x, hi_x, lo_y, hi_y = min(lo_x, cx), max(hi_x, cx), min(lo_y, cy), max(hi_y, cy)
+            best[k] = np.inf
+        if inside:
+            for row in range(lo_y - s.window, hi_y + s.window + 1):
+                for col in range(lo_x - s.window, hi_x + s.window + 1):
+                    surface, mx, my = _surface_point(grid, hits, row, col, side_x, side_y)
+                    if surface:
+                        for k in range(4):
+                            d2 = (mx - hxs[k]) ** 2 + (my - hys[k]) ** 2
+                            if d2 < best[k]:
+                                best[k] = d2
+        else:
+            for k in range(4):
+                cx, cy = int(math.floor(hxs[k])), int(math.floor(hys[k]))
+                if reach <= cx < w - reach and reach <= cy < h - reach:
+                    best[k] = nearest_surface_d2(grid, hits, hxs[k], hys[k], side_x, side_y, s.window)
+        for k in range(4):
+            if best[k] < s.cap2:
+                out[k] -= best[k] * s.scale
+            else:
+                out[k] -= s.null2 * s.scale
