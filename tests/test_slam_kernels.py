@@ -298,10 +298,11 @@ def test_shifted_logliks_are_scan_logliks_bit_for_bit(seed, radius, shift):
     s = settings(radius)
     gxs = x / RES + np.array([-shift, shift, 0.0, 0.0])
     gys = y / RES + np.array([0.0, 0.0, -shift, shift])
-    got = np.empty(4)
-    MT._shifted_logliks(grid, hits, gxs, gys, offsets, n, s, got)
-    want = [MT.scan_loglik(grid, hits, gxs[k], gys[k], offsets, n, s, -np.inf)[0] for k in range(4)]
-    assert got.tolist() == want
+    got, matched = np.empty(4), np.empty(4, dtype=np.int64)
+    MT._shifted_logliks(grid, hits, gxs, gys, offsets, n, s, got, matched)
+    want = [MT.scan_loglik(grid, hits, gxs[k], gys[k], offsets, n, s, -np.inf) for k in range(4)]
+    assert got.tolist() == [value for value, _ in want]
+    assert matched.tolist() == [count for _, count in want]
 
 
 def twin_hill_climb(grid, hits, start, ranges, angles, mean, precision, lstep, astep, refinements, iterations):

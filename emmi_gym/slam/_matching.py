@@ -261,6 +261,8 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
     steps when none helps, at most ``refinements`` times. The move straight back to where the last
     step came from is not scored again (it scored less), and the beams turned by +-astep are computed
     once per heading and step (a move in x or y keeps them; a turn taken makes them the current ones).
+    In the fine stage the four moves in x and y, which share the heading's beams, are scored at once
+    (:func:`_shifted_logliks`) and taken or not as one by one with the bound would: the same climb.
     Returns (best pose, its value, its matched beams)."""
     current = np.empty((ranges.size, 4))
     plus = np.empty((ranges.size, 4))   # the beams at heading + astep, valid while plus_ok
@@ -274,9 +276,17 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
     candidate = np.empty(3)
     best_pose = pose.copy()
     back = -1  # the move that would return to the pose before the last step: known to be worse
+    gxs, gys, shifted, shifted_matched = np.empty(4), np.empty(4), np.empty(4), np.empty(4, dtype=np.int64)
     for _ in range(s.max_iterations):
         improved = False
         taken = -1
+        if not coarse_stage:  # the four moves in x and y keep the heading: scored at once (_shifted_logliks)
+            for move in range(4):
+                candidate[:] = pose
+                candidate[move // 2] += (1.0 if move % 2 == 0 else -1.0) * lstep
+                gxs[move] = (candidate[0] - s.origin_x) / s.resolution
+                gys[move] = (candidate[1] - s.origin_y) / s.resolution
+            _shifted_logliks(grid, hits, gxs, gys, current, n, s, shifted, shifted_matched)
         for move in range(6):
             if move == back:
                 continue
@@ -284,21 +294,30 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
             axis = move // 2
             sign = 1.0 if move % 2 == 0 else -1.0
             offsets = current
-            if axis == 2:
-                candidate[2] += sign * astep
-                if move == 4:
-                    if not plus_ok:
-                        beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, plus)
-                        plus_ok = True
-                    offsets = plus
-                else:
-                    if not minus_ok:
-                        beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, minus)
-                        minus_ok = True
-                    offsets = minus
-            else:
+            if axis < 2 and not coarse_stage:
                 candidate[axis] += sign * lstep
-            value, hit = _objective(coarse_stage, grid, hits, coarse, candidate, offsets, n, s, mean, precision, best)
+                # what log_target with the floor ``best`` gives: cut short (hit -1) where the whole sum ends
+                # at or below best + prior, since each beam lowers it
+                prior = 0.5 * _prior_quadratic(candidate[0], candidate[1], candidate[2], mean, precision)
+                value = shifted[move] - prior
+                hit = shifted_matched[move] if shifted[move] > best + prior else -1
+            else:
+                if axis == 2:
+                    candidate[2] += sign * astep
+                    if move == 4:
+                        if not plus_ok:
+                            beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, plus)
+                            plus_ok = True
+                        offsets = plus
+                    else:
+                        if not minus_ok:
+                            beam_offsets(candidate[2], ranges, angles, max_range, s.resolution, minus)
+                            minus_ok = True
+                        offsets = minus
+                else:
+                    candidate[axis] += sign * lstep
+                value, hit = _objective(coarse_stage, grid, hits, coarse, candidate, offsets, n, s, mean, precision,
+                                        best)
             if hit >= 0 and value > best:  # hit < 0: cut short, not better
                 best, matched = value, hit
                 best_pose[:] = candidate
@@ -469,11 +488,11 @@ def _stencil_scores(grid, cell_hits, best_pose, centre, offsets, n, s, stencil, 
     mode, mode + step). Returns (the largest score, the sum of exp(score - largest))."""
     scores[0] = centre + lognorm
     top = scores[0]
-    gxs, gys, shifted = np.empty(4), np.empty(4), np.empty(4)
+    gxs, gys, shifted, matched = np.empty(4), np.empty(4), np.empty(4), np.empty(4, dtype=np.int64)
     for k in range(1, 5):  # the moves in x and y keep the heading: their beams share one look at the cells
         gxs[k - 1] = (best_pose[0] + stencil[k, 0] - s.origin_x) / s.resolution
         gys[k - 1] = (best_pose[1] + stencil[k, 1] - s.origin_y) / s.resolution
-    _shifted_logliks(grid, cell_hits, gxs, gys, offsets[1], n, s, shifted)
+    _shifted_logliks(grid, cell_hits, gxs, gys, offsets[1], n, s, shifted, matched)
     for k in range(1, 7):
         for axis in range(3):
             pose[axis] = best_pose[axis] + stencil[k, axis]
@@ -492,15 +511,17 @@ def _stencil_scores(grid, cell_hits, best_pose, centre, offsets, n, s, stencil, 
 
 
 @nb.njit(cache=True)
-def _shifted_logliks(grid, hits, gxs, gys, offsets, n_beams, s, out):
+def _shifted_logliks(grid, hits, gxs, gys, offsets, n_beams, s, out, matched):
     """:func:`scan_loglik` (every beam scored) with the laser at each of the four grid positions (gxs[k],
     gys[k]), the same numbers into ``out``: each beam's surface points are read once from the cells
     round its four end points, not searched four times. A cell outside a point's window holds no
-    surface point within the match radius of it, so taking it in changes nothing."""
+    surface point within the match radius of it, so taking it in changes nothing. The matched beams of
+    each go to ``matched``."""
     h, w = grid.shape
     reach = s.window + 1
     hxs, hys, best = np.empty(4), np.empty(4), np.empty(4)
     out[:] = 0.0
+    matched[:] = 0
     for b in range(n_beams):
         side_x, side_y = int(offsets[b, 2]), int(offsets[b, 3])
         lo_x = lo_y = w + h
@@ -530,5 +551,6 @@ def _shifted_logliks(grid, hits, gxs, gys, offsets, n_beams, s, out):
         for k in range(4):
             if best[k] < s.cap2:
                 out[k] -= best[k] * s.scale
+                matched[k] += 1
             else:
                 out[k] -= s.null2 * s.scale
