@@ -6,8 +6,8 @@ they know arrays, not worlds or filters.
 
 from __future__ import annotations
 
-import numpy as np
 import numba as nb
+import numpy as np
 from scipy import ndimage
 
 from .certainty import DEFAULT_OBSERVED_TOL, observation_labels

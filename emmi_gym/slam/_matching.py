@@ -262,7 +262,8 @@ def _climb(coarse_stage, grid, hits, coarse, start, ranges, angles, max_range, s
     step came from is not scored again (it scored less), and the beams turned by +-astep are computed
     once per heading and step (a move in x or y keeps them; a turn taken makes them the current ones).
     In the fine stage the four moves in x and y, which share the heading's beams, are scored at once
-    (:func:`_shifted_logliks`) and taken or not as one by one with the bound would: the same climb.
+    (:func:`_shifted_logliks`) and taken or not as scoring them one by one with the bound would: the same
+    climb.
     Returns (best pose, its value, its matched beams)."""
     current = np.empty((ranges.size, 4))
     plus = np.empty((ranges.size, 4))   # the beams at heading + astep, valid while plus_ok
