@@ -157,7 +157,6 @@ def wall_consistency(probabilities: np.ndarray, oracle: np.ndarray, resolution: 
 def oracle_scores(probabilities: np.ndarray, oracle: np.ndarray, resolution: float,
                   tolerance: float = WALL_TOLERANCE, observed_tol: float = DEFAULT_OBSERVED_TOL) -> tuple[float, float]:
     """(:func:`oracle_accuracy`, :func:`wall_consistency`), labelling each map once."""
-    _check_same_grid(probabilities, oracle)
     return oracle_scores_of_labels(map_labels(probabilities, observed_tol), map_labels(oracle, observed_tol),
                                    resolution, tolerance)
 
