@@ -3,7 +3,9 @@
     python scripts/bench_vec.py [--env-id emmi_gym/ExploreVelocity-v0] [--seconds 20] [--envs 2 4 8]
 
 For each setting: reset (seeded), then random actions until ``--seconds`` have passed, counting
-env steps over all envs (episode resets inside the vector envs are counted in the time). Settings:
+env steps over all envs (episode resets inside the vector envs are counted in the time). Waypoint
+ids draw among the valid slots, read from each env's ``action_masks()`` before every step as
+MaskablePPO reads them (through the vector env, from the worker processes where there are some). Settings:
 one env in this process; gymnasium's ``make_vec(..., vectorization_mode="sync")`` and
 ``"async"`` (subprocesses); SB3's ``DummyVecEnv`` and ``SubprocVecEnv``, each at the given numbers
 of envs. Worker processes run their kernels on one thread (as ``emmi-gym train`` sets them);
@@ -31,6 +33,16 @@ def _worker_env(env_id: str):
     return gym.make(env_id)
 
 
+def _masked_choice(rngs: list, masks) -> np.ndarray:
+    """One valid action per env: a random slot among each row of ``masks`` that is True, env i's drawn
+    from ``rngs[i]`` (seeded i: env i, seeded i too, plays the same episodes in every setting)."""
+    return np.array([rng.choice(np.flatnonzero(mask)) for rng, mask in zip(rngs, masks)])
+
+
+def _rngs(n: int) -> list:
+    return [np.random.default_rng(i) for i in range(n)]
+
+
 def _rate(step, sample, seconds: float, per_step: int) -> float:
     steps, started = 0, time.perf_counter()
     while time.perf_counter() - started < seconds:
@@ -39,15 +51,22 @@ def _rate(step, sample, seconds: float, per_step: int) -> float:
     return steps / (time.perf_counter() - started)
 
 
+def _waypoint(env_id: str) -> bool:
+    return gym.spec(env_id).kwargs.get("action_mode", "waypoint") == "waypoint"
+
+
 def single(env_id: str, seconds: float) -> float:
     env = gym.make(env_id)
     env.reset(seed=0)
+    rngs = _rngs(1)
 
     def step(action):
         _, _, terminated, truncated, _ = env.step(action)
         if terminated or truncated:
             env.reset()
-    rate = _rate(step, env.action_space.sample, seconds, 1)
+    sample = (lambda: int(_masked_choice(rngs, [env.unwrapped.action_masks()])[0])) if _waypoint(env_id) \
+        else env.action_space.sample
+    rate = _rate(step, sample, seconds, 1)
     env.close()
     return rate
 
@@ -56,7 +75,10 @@ def gymnasium_vec(env_id: str, n: int, mode: str, seconds: float) -> float:
     envs = gym.vector.AsyncVectorEnv([partial(_worker_env, env_id)] * n) if mode == "async" else \
         gym.make_vec(env_id, num_envs=n, vectorization_mode="sync")
     envs.reset(seed=0)
-    rate = _rate(envs.step, envs.action_space.sample, seconds, n)
+    rngs = _rngs(n)
+    sample = (lambda: _masked_choice(rngs, envs.call("action_masks"))) if _waypoint(env_id) \
+        else envs.action_space.sample
+    rate = _rate(envs.step, sample, seconds, n)
     envs.close()
     return rate
 
@@ -67,7 +89,10 @@ def sb3_vec(env_id: str, n: int, subprocess: bool, seconds: float) -> float:
     envs = (SubprocVecEnv if subprocess else DummyVecEnv)([partial(_worker_env, env_id)] * n)
     envs.seed(0)
     envs.reset()
-    rate = _rate(envs.step, lambda: np.stack([envs.action_space.sample() for _ in range(n)]), seconds, n)
+    rngs = _rngs(n)
+    sample = (lambda: _masked_choice(rngs, envs.env_method("action_masks"))) if _waypoint(env_id) \
+        else (lambda: np.stack([envs.action_space.sample() for _ in range(n)]))
+    rate = _rate(envs.step, sample, seconds, n)
     envs.close()
     return rate
 
@@ -80,7 +105,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{args.env_id} on {os.cpu_count()} cores, {args.seconds:.0f} s per setting")
     rows = [("single process", 1, single(args.env_id, args.seconds))]
-    print(f"single process: {rows[0][2]:.0f} steps/s", flush=True)
+    print(f"single process: {rows[0][2]:.1f} steps/s", flush=True)
     for n in args.envs:
         for label, run in (("gymnasium sync", lambda: gymnasium_vec(args.env_id, n, "sync", args.seconds)),
                            ("gymnasium async", lambda: gymnasium_vec(args.env_id, n, "async", args.seconds)),
@@ -88,10 +113,10 @@ def main() -> None:
                            ("SB3 SubprocVecEnv", lambda: sb3_vec(args.env_id, n, True, args.seconds))):
             rate = run()
             rows.append((label, n, rate))
-            print(f"{label}, {n} envs: {rate:.0f} steps/s", flush=True)
+            print(f"{label}, {n} envs: {rate:.1f} steps/s", flush=True)
     print("\n| vectorisation | envs | env steps / s | vs single process |\n| --- | --- | --- | --- |")
     for label, n, rate in rows:
-        print(f"| {label} | {n} | {rate:.0f} | {rate / rows[0][2]:.2f}x |")
+        print(f"| {label} | {n} | {rate:.1f} | {rate / rows[0][2]:.2f}x |")
 
 
 if __name__ == "__main__":
