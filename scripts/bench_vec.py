@@ -35,11 +35,14 @@ def _worker_env(env_id: str):
 
 def _masked_choice(rngs: list, masks) -> np.ndarray:
     """One valid action per env: a random slot among each row of ``masks`` that is True, env i's drawn
-    from ``rngs[i]`` (seeded i: env i, seeded i too, plays the same episodes in every setting)."""
+    from ``rngs[i]`` (:func:`_rngs`)."""
     return np.array([rng.choice(np.flatnonzero(mask)) for rng, mask in zip(rngs, masks)])
 
 
 def _rngs(n: int) -> list:
+    """Env i's generator of actions, seeded i as the env is: within gymnasium (sync, async) and within
+    SB3 (DummyVecEnv, SubprocVecEnv) env i then plays the same episodes. Across the two they differ:
+    gymnasium resets an env on the step after its episode ended, spending a draw; SB3 within it."""
     return [np.random.default_rng(i) for i in range(n)]
 
 
