@@ -21,7 +21,7 @@ from pathlib import Path
 
 from emmi_gym.training import callbacks
 from emmi_gym.training.config import algorithm_class, load_agent_config
-from emmi_gym.training.train import train
+from emmi_gym.training.train import set_torch_threads, train
 
 SPENT: dict = defaultdict(float)
 
@@ -51,6 +51,7 @@ def main() -> None:
     config = load_agent_config(args.config)
     if args.timesteps is not None:
         config = replace(config, total_timesteps=args.timesteps)
+    set_torch_threads()  # as emmi-gym train: the same network as it trains
     cls = algorithm_class(config.algorithm)
     timed(cls, "collect_rollouts", "collection")
     timed(cls, "train", "learning")
