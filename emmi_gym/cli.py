@@ -119,19 +119,17 @@ def _cmd_ab(args: argparse.Namespace) -> int:
     return 0
 
 
-def _torch_threads_option(parser: argparse.ArgumentParser) -> None:
+def _torch_threads_option(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument("--torch-threads", type=int, default=None, metavar="N",
-                        help="torch threads of the learner (default 1: small networks run fastest on one, and the "
-                             "env workers need the other cores)")
+                        help=f"torch threads of the learner (default {default})")
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .training.config import load_agent_config
-    from .training.train import set_torch_threads, train
+    from .training.train import set_torch_threads, train, training_torch_threads
 
-    set_torch_threads(args.torch_threads)
     config = load_agent_config(args.config)
     if args.timesteps is not None:
         if args.timesteps < 1:
@@ -139,6 +137,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = replace(config, total_timesteps=args.timesteps)
     if args.seed is not None:
         config = replace(config, seed=args.seed)
+    set_torch_threads(training_torch_threads(config) if args.torch_threads is None else args.torch_threads)
     out = args.out or f"runs/{Path(args.config).stem}_seed{config.seed}"
     print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
@@ -239,7 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--out", default=None, help="run folder (default runs/<config>_seed<seed>)")
     tr.add_argument("--resume", action="store_true", help="continue from the run folder's latest checkpoint")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
-    _torch_threads_option(tr)
+    _torch_threads_option(tr, "1 beside env subprocesses, which need the cores; one per core when the envs "
+                              "run in this process")
     tr.set_defaults(func=_cmd_train)
 
     ev = sub.add_parser("evaluate", help="run a trained model on held-out episodes: return and ground-truth metrics")
@@ -247,7 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--episodes", type=int, default=10)
     ev.add_argument("--seed", type=int, default=200_000, help="first episode seed (default 200000: held out)")
     ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
-    _torch_threads_option(ev)
+    _torch_threads_option(ev, "1: the env's kernels need the cores")
     ev.set_defaults(func=_cmd_evaluate)
 
     bench = sub.add_parser("benchmark", help="train agents per reward variant and compare them, and the scripted "

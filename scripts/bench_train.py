@@ -21,7 +21,7 @@ from pathlib import Path
 
 from emmi_gym.training import callbacks
 from emmi_gym.training.config import algorithm_class, load_agent_config
-from emmi_gym.training.train import set_torch_threads, train
+from emmi_gym.training.train import set_torch_threads, train, training_torch_threads
 
 SPENT: dict = defaultdict(float)
 
@@ -51,7 +51,7 @@ def main() -> None:
     config = load_agent_config(args.config)
     if args.timesteps is not None:
         config = replace(config, total_timesteps=args.timesteps)
-    set_torch_threads()  # as emmi-gym train: the same network as it trains
+    set_torch_threads(training_torch_threads(config))  # as emmi-gym train: the same network as it trains
     cls = algorithm_class(config.algorithm)
     timed(cls, "collect_rollouts", "collection")
     timed(cls, "train", "learning")

@@ -14,7 +14,7 @@ from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_
 from emmi_gym.training.episodes import GROUND_TRUTH
 from emmi_gym.training.evaluate import evaluate_model
 from emmi_gym.training.loop_order import LOOP_ORDER_KEY
-from emmi_gym.training.train import latest_checkpoint, make_env, train
+from emmi_gym.training.train import latest_checkpoint, make_env, train, training_torch_threads
 
 #: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.
 FAST_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 150}
@@ -231,6 +231,14 @@ def test_resume_skips_a_checkpoint_cut_short_by_a_kill(tmp_path):
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
         resumed = train(more, tmp_path, resume=True, progress=False)
     assert resumed.timesteps >= 96 and not list(tmp_path.rglob("*.tmp.*"))
+
+
+def test_training_torch_threads_leave_the_cores_to_env_subprocesses_only():
+    cores = os.cpu_count() or 1
+    assert training_torch_threads(load_agent_config("agents/ppo_emmi.yaml")) == 1           # 4 subprocesses
+    assert training_torch_threads(load_agent_config("agents/sac_velocity_emmi.yaml")) == cores  # in process
+    one_subprocess = parse_agent_config(config_dict("PPO", n_envs=1, vec_env="subproc"))  # runs in this process
+    assert training_torch_threads(one_subprocess) == cores
 
 
 def test_shipped_configurations_load_and_variants_differ_only_in_reward():
