@@ -228,11 +228,11 @@ def build(cls, options, label: str, source: str = "option", error=OptionError):
     valid = [f.name for f in fields(cls)]
     unknown = sorted(set(map(str, options)) - set(valid))
     if unknown:
-        raise error(source, _join(label, unknown[0]), f"one of the known options {valid}")
+        raise error(source, field_path(label, unknown[0]), f"one of the known options {valid}")
     try:
         return cls(**options)
     except OptionError as exc:
-        raise error(source, _join(label, exc.field), exc.expected, exc.got) from None
+        raise error(source, field_path(label, exc.field), exc.expected, exc.got) from None
 
 
 def check_value(value, check: Check, source: str, name: str, error=OptionError):
@@ -243,9 +243,10 @@ def check_value(value, check: Check, source: str, name: str, error=OptionError):
         raise error(source, name, str(exc), value) from None
 
 
-def _join(label: str, name: str) -> str:
+def field_path(label: str, name: str) -> str:
+    """The dotted name of field ``name`` of the options at ``label`` ("" for the top level)."""
     return f"{label}.{name}" if label else name
 
 
 __all__ = ["MAX_LASER_RANGE", "Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Preset", "Real", "Text",
-           "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "option"]
+           "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "field_path", "option"]

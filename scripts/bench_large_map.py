@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from _data import require_files
+from _options import rbpf_config
 
 from emmi_gym import carmen
 from emmi_gym.evaluation import absolute_trajectory_error
@@ -54,12 +55,10 @@ def tour(data: Path, metres: float, spacing: float = 1.0) -> list[tuple[float, f
     return [tuple(p) for p in xy[np.unique(np.append(marks, xy.shape[0] - 1))]]
 
 
-def run(rec, angles, particles: int, resolution: float, geometry: GridGeometry, scans: int | None = None,
-        seed: int = 1, **options):
+def run(rec, angles, config: RBPFConfig, geometry: GridGeometry, scans: int | None = None, seed: int = 1):
     """The filter (random draws from ``seed``) over the first ``scans`` of the drive: its updates' metrics,
     the ATE of its best path, and each resampling's phases (``ParticleMaps.resample_ms``)."""
-    slam = RBPF(RBPFConfig(particles=particles, resolution=resolution, **options), max_range=LASER.max_range,
-                geometry=geometry)
+    slam = RBPF(config, max_range=LASER.max_range, geometry=geometry)
     slam.reset(rec.odometry_poses[0], np.random.default_rng(seed))
     rows, truth, resamplings = [], [], []
     for pose, true_pose, ranges in itertools.islice(zip(rec.odometry_poses, rec.true_poses, rec.scans), scans):
@@ -85,7 +84,7 @@ def main() -> None:
     parser.add_argument("--filter-seeds", nargs="+", type=int, default=[1], help="the filter's random seeds")
     args = parser.parse_args()
     require_files(parser, args.data, ["aces-corrected.log.gz"], "carmen")
-    options = json.loads(args.slam)
+    config = rbpf_config(parser, args.slam, particles=args.particles, resolution=args.resolution)
     if args.threads is not None:
         set_kernel_threads(args.threads)
     world = load_world("aces")
@@ -101,11 +100,9 @@ def main() -> None:
     xmin, ymin, xmax, ymax = world.bounds
     cx, cy = (xmin + xmax) / 2, (ymin + ymax) / 2
     geometry = GridGeometry.covering(cx - 30.0, cy - 30.0, cx + 30.0, cy + 30.0, args.resolution)
-    run(rec, LASER.angles, args.particles, args.resolution, geometry, scans=100,
-        **dict(options, resample_threshold=1.0))  # load kernels
+    run(rec, LASER.angles, replace(config, resample_threshold=1.0), geometry, scans=100)  # load kernels
     t0 = time.perf_counter()
-    rows, ate, phases_of_resamplings = run(rec, LASER.angles, args.particles, args.resolution, geometry,
-                                           seed=args.filter_seeds[0], **options)
+    rows, ate, phases_of_resamplings = run(rec, LASER.angles, config, geometry, seed=args.filter_seeds[0])
     wall = time.perf_counter() - t0
     timed = rows[10:]
     phases = {k: float(np.median([r.phase_ms[k] for r in timed])) for k in timed[0].phase_ms}
@@ -127,8 +124,7 @@ def main() -> None:
     if len(args.filter_seeds) > 1:
         runs = [(ate, len(resamplings))]
         for seed in args.filter_seeds[1:]:
-            seed_rows, seed_ate, _ = run(rec, LASER.angles, args.particles, args.resolution, geometry, seed=seed,
-                                         **options)
+            seed_rows, seed_ate, _ = run(rec, LASER.angles, config, geometry, seed=seed)
             runs.append((seed_ate, sum(r.resampled for r in seed_rows)))
         print("filter seeds " + ", ".join(f"{s}: ATE {a:.3f} m ({n} resamplings)"
                                           for s, (a, n) in zip(args.filter_seeds, runs)))

@@ -13,10 +13,14 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 from pathlib import Path
 
+import gymnasium as gym
+from _options import checked, json_object
+
+from emmi_gym.env import ENV_IDS, EnvConfig
 from emmi_gym.experiments.comparison import SCORES, ComparisonSettings, compare, markdown_table, plot_pair, run_episode
+from emmi_gym.validation import build
 from emmi_gym.world.map_sets import map_set_files
 
 
@@ -32,11 +36,15 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=Path("results/plans"))
     args = parser.parse_args()
+    settings = ComparisonSettings(args.env, json_object(parser, "--options", args.options))
+    if args.env not in gym.registry:
+        parser.error(f"--env: no environment {args.env!r} is registered (emmi-gym's: "
+                     f"{', '.join(f'emmi_gym/{name}' for name in ENV_IDS)})")
+    checked(parser, build, EnvConfig, {**gym.spec(args.env).kwargs, **settings.env_options}, "", source="--options")
     worlds = []
     for name in args.worlds:
         files = map_set_files(name)
         worlds += [str(f) for f in files[:args.plans]] if files is not None else [name]
-    settings = ComparisonSettings(args.env, json.loads(args.options))
     baseline, policy = args.policies
     rows = compare(worlds, args.seeds, [baseline, policy], settings, workers=args.workers)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -21,20 +21,15 @@ EMMI more than anything), and how many resamplings came before it.
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
+from _options import checked, preset_or_fields, rbpf_config
 
 from emmi_gym.evaluation import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.grid import GridGeometry
-from emmi_gym.slam import RBPF, RBPFConfig
+from emmi_gym.slam import RBPF
 from emmi_gym.world import LaserConfig, OdometryNoise, Simulator, drive_route, load_world, rasterise
 from emmi_gym.world.presets import laser_config, odometry_config
-
-
-def _preset_or_json(text: str):
-    """A preset name as it is, JSON fields (``{...}``) parsed."""
-    return json.loads(text) if text.lstrip().startswith("{") else text
 
 
 def main() -> None:
@@ -45,10 +40,12 @@ def main() -> None:
     parser.add_argument("--laser", default=None, help="a laser preset name, or JSON fields with an optional preset")
     parser.add_argument("--odometry", default=None, help="an odometry preset name, or JSON fields")
     args = parser.parse_args()
-    overrides = json.loads(args.slam)
+    config = rbpf_config(parser, args.slam, particles=args.particles)
     world = load_world("loop_corridor")
-    laser = laser_config(_preset_or_json(args.laser), "--laser") if args.laser else LaserConfig()
-    noise = odometry_config(_preset_or_json(args.odometry), "--odometry") if args.odometry else OdometryNoise()
+    laser = (checked(parser, laser_config, preset_or_fields(parser, "--laser", args.laser), "", "--laser")
+             if args.laser else LaserConfig())
+    noise = (checked(parser, odometry_config, preset_or_fields(parser, "--odometry", args.odometry), "",
+                     "--odometry") if args.odometry else OdometryNoise())
     sim = Simulator(world, laser=laser, odometry=noise)
     angles = sim.laser.config.angles
     geometry = GridGeometry.covering(*world.bounds, 0.1)
@@ -57,7 +54,7 @@ def main() -> None:
     rows = []
     for seed in range(args.seeds):
         rec = drive_route(sim, route, np.random.default_rng(seed))
-        slam = RBPF(RBPFConfig(**dict(overrides, particles=args.particles)), max_range=laser.max_range, geometry=geometry)
+        slam = RBPF(config, max_range=laser.max_range, geometry=geometry)
         slam.reset(rec.odometry_poses[0], np.random.default_rng(1000 + seed))
         metrics, steps = [], []
         for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans)):

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 from _data import require_files
+from _options import rbpf_config
 
 from emmi_gym.carmen import read_log
 from emmi_gym.slam import RBPFConfig
@@ -84,9 +85,9 @@ def main() -> None:
     parser.add_argument("--flaser-fov", type=float, default=180.0,
                         help="field of view of the FLASER lines, degrees (the first beam at -fov/2, the last at +fov/2)")
     args = parser.parse_args()
-    options = {"particles": args.particles, "resolution": args.resolution, "linear_update": 0.0,
-               "angular_update": 0.0, **json.loads(args.slam)}  # every keyframe an update
-    config = RBPFConfig(**options) if args.preset == "none" else RBPFConfig.preset(args.preset, **options)
+    config = rbpf_config(parser, args.slam, None if args.preset == "none" else args.preset,
+                         particles=args.particles, resolution=args.resolution, linear_update=0.0,
+                         angular_update=0.0)  # every keyframe an update
     data, out = Path(args.data), Path(args.out)
     runs = [(data / f"{name}-seed{seed}.log.gz", f) for name in args.logs for seed in args.seeds
             for f in args.filter_seeds]

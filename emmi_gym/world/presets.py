@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from ..validation import Choice, OptionError, build, check_value
+from ..validation import Choice, OptionError, build, check_value, field_path
 from .laser import LaserConfig
 from .odometry import OdometryNoise
 
@@ -58,7 +58,7 @@ def _with_preset(cls, value, presets: dict, label: str, source: str):
     fields = dict(value)
     name = fields.pop("preset", None)
     if name is not None:
-        check_value(name, Choice(tuple(presets)), source, f"{label}.preset")
+        check_value(name, Choice(tuple(presets)), source, field_path(label, "preset"))
         fields = dict(presets[name], **fields)
     return build(cls, fields, label, source=source)
 
