@@ -339,6 +339,12 @@ def test_resampling_refuses_parents_that_would_overwrite_a_source():
         maps.resample(np.array([0, 3, 0]))
 
 
+def test_resampling_with_nothing_disputed_copies_nothing():
+    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 10, 10), 3, CellCodes.from_config(RBPFConfig()))
+    maps.resample(np.array([0, 0, 2]))
+    assert maps.disputed_cells.size == 0 and not maps.codes.any() and not maps.hits.any()
+
+
 def test_grids_grow_in_chunks_and_keep_cells_aligned():
     maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 10, 10), 2, CellCodes.from_config(RBPFConfig()))
     maps.codes[1, 3, 4] = 7
