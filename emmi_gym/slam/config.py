@@ -129,8 +129,8 @@ class RBPFConfig:
 #: that grazes a far wall frees its cells before it reaches its end cell (Intel's median ATE
 #: over nine runs 0.070 -> 0.053 m, ACES's 0.177 -> 0.123 m, CSAIL and Freiburg 079 within
 #: their spread); and cells clamped at +-9 log-odds instead of 6 (codes of 0.1), so that what
-#: was seen many times, free space and walls alike, outlasts a few contrary readings (people
-#: walking by, beams grazing a wall) and a place seen again on a long tour still matches it
+#: was seen many times, free space and walls alike, outlasts a few contrary readings (beams
+#: grazing a wall, anything that moves) and a place seen again on a long tour still matches it
 #: (Freiburg 079's median 0.112 -> 0.092 m, the others within their spread; +-12 took ACES's
 #: from 0.123 to 0.152 m). Measured with scripts/slam_benchmark.py, see docs/slam.md.
 PRESETS = {
