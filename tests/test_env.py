@@ -413,6 +413,28 @@ def test_targets_near_a_blocked_attempt_are_not_offered_again():
     assert sum(t is not None for t in slots) >= 1
 
 
+def test_targets_are_offered_again_when_every_one_lies_by_a_blocked_attempt():
+    """Better a target where an attempt ended blocked before the map changed than none at all: the robot
+    stood still to the end of the episode (4 of 100 random-action episodes of Explore-v0). Block every
+    target offered until only targets by blocked points are left: those are offered again."""
+    from emmi_gym.navigation.candidates import BLOCKED_RADIUS
+
+    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env.reset(seed=0)
+    core = env.unwrapped
+    for _ in range(30):
+        offered = [t for t in core.targets if t is not None]
+        assert offered and core.action_masks().sum() == len(offered)
+        if core._blocked and all(min(np.hypot(t.x - x, t.y - y) for x, y in core._blocked) <= BLOCKED_RADIUS
+                                 for t in offered):
+            break
+        core._blocked.extend((t.x, t.y) for t in offered)
+        core._stale = True
+        core._refresh()
+    else:
+        pytest.fail("targets away from every blocked point were still offered after 30 rounds")
+
+
 def test_a_wall_seen_on_the_way_makes_the_robot_replan():
     from emmi_gym.navigation.planner import path_obstructed, travel_costs
     from emmi_gym.grid import GridGeometry
