@@ -339,10 +339,18 @@ def test_resampling_refuses_parents_that_would_overwrite_a_source():
         maps.resample(np.array([0, 3, 0]))
 
 
-def test_resampling_with_nothing_disputed_copies_nothing():
-    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 10, 10), 3, CellCodes.from_config(RBPFConfig()))
+def test_resampling_with_nothing_disputed_leaves_maps_and_agreement_as_they_were():
+    """Every grid the same (one scan at one pose for all): no span to copy, nothing to re-derive."""
+    maps = ParticleMaps(GridGeometry(0.1, 0.0, 0.0, 40, 40), 3, CellCodes.from_config(RBPFConfig()), block=2)
+    angles = np.linspace(-np.pi, np.pi, 60, endpoint=False)
+    maps.insert(np.tile([2.0, 2.0, 0.3], (3, 1)), np.random.default_rng(0).uniform(0.3, 1.5, 60), angles, 3.0, 0.0)
+    before = copy.deepcopy(maps)
+    assert maps.disputed_cells.size == 0 and maps.codes.any()
     maps.resample(np.array([0, 0, 2]))
-    assert maps.disputed_cells.size == 0 and not maps.codes.any() and not maps.hits.any()
+    for name in ("codes", "hits", "coarse", "counts", "status", "agreed_counts"):
+        np.testing.assert_array_equal(getattr(maps, name), getattr(before, name))
+    assert maps.disputed_cells.size == 0
+    assert_agreement_is_exact(maps)
 
 
 def test_grids_grow_in_chunks_and_keep_cells_aligned():
