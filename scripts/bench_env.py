@@ -1,6 +1,7 @@
 """Environment steps per second for each id at default settings, and where the time goes.
 
     python scripts/bench_env.py [--decisions 60] [--velocity-steps 10000] [--repeats 3] [--ids ExploreVelocity-v0 ...]
+                                [--options '{"slam": {"linear_update": 1.0}}'] [--against DIR]
 
 Single process. For each id: reset (seed 0), then take a fixed number of env steps
 (random valid waypoint actions; random velocities; drawn from seed 0, so every run, and
@@ -14,7 +15,8 @@ each part's time excludes the parts timed inside it.
 
 This machine's speed drifts by tens of percent from minute to minute, more than most
 changes gain: ``--against DIR`` (a ``git worktree`` of the code before a change) plays
-the same steps with both codes in turns, one step each, and prints their ratio.
+the same steps with both codes in turns, one step each, and prints their ratio. ``--options``
+times another setting (``gym.make`` options for every id): its episodes differ from the defaults'.
 """
 
 from __future__ import annotations
@@ -71,10 +73,11 @@ timed(EmmiEnv, "_refresh", SPENT, "map products")
 timed(EmmiEnv, "_observation", SPENT, "observation")
 
 
-def play(env_id: str):
-    """Step the fixed episodes of ``env_id`` for ever, yielding after each env step (wall seconds inside
-    ``step()``, simulator steps, filter updates); resets are not timed, nor are their parts."""
-    env = gym.make(env_id)
+def play(env_id: str, options: dict):
+    """Step the fixed episodes of ``env_id`` (made with ``options``) for ever, yielding after each env step
+    (wall seconds inside ``step()``, simulator steps, filter updates); resets are not timed, nor are their
+    parts."""
+    env = gym.make(env_id, **options)
     core = env.unwrapped
     rng = np.random.default_rng(0)
     env.reset(seed=0)
@@ -101,12 +104,12 @@ def play(env_id: str):
         env.close()
 
 
-def bench(env_id: str, n_steps: int) -> tuple[float, float, dict, int]:
+def bench(env_id: str, n_steps: int, options: dict) -> tuple[float, float, dict, int]:
     """One run of ``n_steps`` env steps; returns (wall seconds inside step(), simulator steps, seconds per
     part, filter updates)."""
     SPENT.clear()
     wall = sim_steps = updates = 0
-    for _, (dt, sims, ups) in zip(range(n_steps), play(env_id)):
+    for _, (dt, sims, ups) in zip(range(n_steps), play(env_id, options)):
         wall, sim_steps, updates = wall + dt, sim_steps + sims, updates + ups
     spent = dict(SPENT)
     spent["other"] = max(0.0, wall - sum(spent.values()))
@@ -152,25 +155,25 @@ def against(env_id: str, n_steps: int, code: str) -> None:
 def worker(env_id: str) -> None:
     """The other end of :func:`against`: "warm N" plays N steps untimed and starts the episodes again;
     "step" plays one step and writes its wall time back."""
-    episodes = play(env_id)
+    episodes = play(env_id, {})
     for line in sys.stdin:
         if line.startswith("warm"):
             for _ in zip(range(int(line.split()[1])), episodes):
                 pass
             episodes.close()
-            episodes = play(env_id)
+            episodes = play(env_id, {})
             print("warm", flush=True)
         else:
             print(next(episodes)[0], flush=True)
 
 
-def report(env_id: str, n_steps: int, repeats: int) -> None:
+def report(env_id: str, n_steps: int, repeats: int, options: dict) -> None:
     """The median of ``repeats`` runs of the same episodes (and the range of the rates)."""
-    runs = [bench(env_id, n_steps) for _ in range(repeats)]
+    runs = [bench(env_id, n_steps, options) for _ in range(repeats)]
     walls = np.array([run[0] for run in runs])
     wall, sim_steps, spent, updates = runs[int(np.argsort(walls)[len(walls) // 2])]
     rates = n_steps / walls
-    print(f"{env_id}: {n_steps / wall:.1f} env steps/s ({rates.min():.1f}-{rates.max():.1f} over {repeats} runs), "
+    print(f"{env_id}{f' {options}' if options else ''}: {n_steps / wall:.1f} env steps/s ({rates.min():.1f}-{rates.max():.1f} over {repeats} runs), "
           f"{sim_steps / wall:.0f} simulator steps/s, {1e3 * spent['rbpf'] / max(updates, 1):.2f} ms of RBPF per "
           f"update ({n_steps} env steps, {sim_steps} simulator steps, {updates} filter updates, "
           f"{wall:.1f} s of step() in the median run)")
@@ -185,10 +188,22 @@ def main() -> None:
     parser.add_argument("--ids", nargs="+", choices=ENV_IDS, default=list(ENV_IDS), help="which environments")
     parser.add_argument("--against", metavar="DIR", help="a checkout of other code (git worktree add DIR REV): "
                         "play the same steps with both, in turns, and print the ratio of their times")
+    parser.add_argument("--options", default="{}", help="JSON of gym.make options for every id (another "
+                        "setting's speed: its episodes differ), e.g. '{\"particles\": 8}'; not with --against")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
         return worker(args.worker)
+    from _options import checked, json_object  # here, not in the workers: they may run older code
+
+    from emmi_gym.env import EnvConfig
+    from emmi_gym.validation import build
+
+    options = json_object(parser, "--options", args.options)
+    if options and args.against:
+        parser.error("--options with --against: both codes must play the same episodes, made with the defaults")
+    for name in args.ids:
+        checked(parser, build, EnvConfig, {**ENV_IDS[name], **options}, "", source="--options")
     for name in args.ids:
         env_id = f"emmi_gym/{name}"
         velocity = gym.spec(env_id).kwargs.get("action_mode") == "velocity"
@@ -196,7 +211,7 @@ def main() -> None:
         if args.against:
             against(env_id, n_steps, args.against)
         else:
-            report(env_id, n_steps, args.repeats)
+            report(env_id, n_steps, args.repeats, options)
 
 
 if __name__ == "__main__":
