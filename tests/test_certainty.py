@@ -307,17 +307,25 @@ def test_bad_log_weights_and_tolerance():
         C.pose_entropy(np.zeros((3, 2)), np.ones(3))
 
 
-@given(st.integers(1, 5), st.integers(1, 300), st.sampled_from([np.int8, np.uint8, np.int16]), st.integers(0, 2**31))
-def test_integer_codes_with_lut_match_probabilities(m, n, dtype, seed):
+@given(st.integers(1, 5), st.integers(1, 300), st.sampled_from([np.int8, np.uint8, np.int16, np.uint16]),
+       st.booleans(), st.integers(0, 2**31))
+def test_integer_codes_with_lut_match_probabilities(m, n, dtype, narrow, seed):
+    """Whole grids and rows of cells (whose 16-bit codes are looked up over the range they span: all
+    of it, or a narrow band of it) against the probabilities."""
     rng = np.random.default_rng(seed)
     info = np.iinfo(dtype)
-    codes = rng.integers(info.min, info.max + 1, size=(m, n)).astype(dtype)
+    lo = info.min + (rng.integers(0, info.max - info.min - 10) if narrow else 0)
+    hi = min(info.max, lo + 10) if narrow else info.max
+    codes = rng.integers(lo, hi + 1, size=(m, n)).astype(dtype)
     lut = rng.random(info.max - info.min + 1)
     lut[rng.random(lut.size) < 0.3] = 0.5  # many unknown codes, as in a map
     p = lut[codes.astype(np.int64) - info.min]
     w = rng.random(m) + 0.1
     np.testing.assert_allclose(C.expected_map(codes, w, lut=lut), ref_em(p, ref_weights(w)), atol=1e-12)
+    np.testing.assert_allclose(C.expected_map_of_cells(codes.T, w, lut=lut), ref_em(p, ref_weights(w)), atol=1e-12)
     assert C.emmi(codes, w, lut=lut) == pytest.approx(C.emmi(p, w), abs=1e-12)
+    nothing_agreed = np.zeros(lut.size, dtype=np.int64)
+    assert C.emmi_of_parts(codes.T, w, nothing_agreed, lut=lut) == pytest.approx(C.emmi(p, w), abs=1e-12)
     assert C.weighted_map_entropy(codes, w, lut=lut) == pytest.approx(C.weighted_map_entropy(p, w), rel=1e-12)
     assert C.mean_information(codes[0], lut=lut) == pytest.approx(C.mean_information(p[0]), abs=1e-12)
 

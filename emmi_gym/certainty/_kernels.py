@@ -64,36 +64,37 @@ def expected_map_codes(grids, weights, lut, offset, out):
             continue
         row = grids[i]
         for j in range(n):
-            out[j] += wi * lut[np.int64(row[j]) + offset]
-
-
-@nb.njit(cache=True, inline="always")
-def _row_expectation(table, k, weights, lut, offset):
-    """Eq. (6) of the cell whose codes in the M grids are ``table[k]``: ``sum_i w_i lut[code_i + offset]``."""
-    p = 0.0
-    for i in range(table.shape[1]):
-        p += weights[i] * lut[np.int64(table[k, i]) + offset]
-    return p
+            out[j] += wi * lut[np.uint64(np.int64(row[j]) + offset)]  # unsigned: see expected_at
 
 
 @nb.njit(cache=True, nogil=True)
-def expected_at(start, stop, table, weights, lut, offset, out):
-    """Eq. (6) of the cells ``table[start:stop]`` (one row of M codes per cell) into ``out``."""
+def expected_at(start, stop, table, weighted, offset, out):
+    """Eq. (6) of the cells ``table[start:stop]`` (one row of M codes per cell) into ``out``:
+    ``sum_i weighted[i, code_i + offset]``, with ``weighted[i, c]`` = w_i p(c) made beforehand (a few
+    KB that stay in L1 cache: one load per code, no multiplication; the same sums, bit for bit, as
+    ``sum_i w_i lut[code_i]`` in the same order). The index is made unsigned, so numba leaves out
+    its test for a negative index (which wraps round): with it the pass took 2.3 times as long."""
     for k in range(start, stop):
-        out[k] = _row_expectation(table, k, weights, lut, offset)
+        p = 0.0
+        for i in range(table.shape[1]):
+            p += weighted[i, np.uint64(np.int64(table[k, i]) + offset)]  # unsigned: no wraparound test
+        out[k] = p
 
 
 @nb.njit(cache=True)
 def beyond_band(p, unobserved_halfwidth, p_out, q_out):
     """Copy the cells of ``p`` farther than ``unobserved_halfwidth`` from 0.5 (the others are surely
-    unobserved, eq. 10) into ``p_out``, with ``1 - p`` into ``q_out``; returns how many."""
+    unobserved, eq. 10) into ``p_out``, with ``1 - p`` into ``q_out``; returns how many.
+
+    Without a branch (every cell is written at the next free place, which moves on only for the
+    cells kept; ``p_out`` and ``q_out`` hold at least ``p.size``): which cells are kept is a coin
+    toss to the branch predictor, and the branching form took twice as long."""
     n = 0
     for j in range(p.size):
         x = np.float64(p[j])
-        if abs(x - 0.5) >= unobserved_halfwidth:
-            p_out[n] = x
-            q_out[n] = 1.0 - x
-            n += 1
+        p_out[n] = x
+        q_out[n] = 1.0 - x
+        n += abs(x - 0.5) >= unobserved_halfwidth
     return n
 
 
@@ -101,16 +102,15 @@ def beyond_band(p, unobserved_halfwidth, p_out, q_out):
 def information_sum(p, q, log_p, log_q, max_entropy_bits):
     """Map information over the observed cells, eq. (9), and their count, eq. (10), from each cell's
     ``p``, ``q = 1 - p`` and their natural logarithms: a cell is observed when its entropy H2 is
-    below ``max_entropy_bits`` (H2 = 0 at p in {0, 1})."""
+    below ``max_entropy_bits`` (H2 = 0 at p in {0, 1}). Selections, not branches (see
+    :func:`beyond_band`); adding 0.0 for a cell not observed leaves the sum as it was."""
     info = 0.0
     n_obs = 0
     for j in range(p.size):
-        h = 0.0
-        if p[j] > 0.0 and q[j] > 0.0:
-            h = -(p[j] * log_p[j] + q[j] * log_q[j]) * _INV_LN2
-        if h < max_entropy_bits:
-            info += 1.0 - h
-            n_obs += 1
+        h = -(p[j] * log_p[j] + q[j] * log_q[j]) * _INV_LN2 if (p[j] > 0.0) & (q[j] > 0.0) else 0.0
+        observed = h < max_entropy_bits
+        info += (1.0 - h) if observed else 0.0
+        n_obs += observed
     return info, n_obs
 
 

@@ -45,8 +45,16 @@ def expected_map_of_cells(cell_codes, weights, *, lut, log_weights: bool = False
 
 
 def _expected_at_rows(rows, weights, lut, offset) -> np.ndarray:
+    """Eq. (6) of each row of codes, through the table of every particle's weighted probabilities
+    ``w_i lut[c]``: over the 256 codes of 8-bit grids, over the codes the rows hold for wider ones."""
+    if lut.size > 256 and rows.size:
+        lo, hi = int(rows.min()) + offset, int(rows.max()) + offset + 1
+    else:
+        lo, hi = 0, lut.size
+    weighted = np.ascontiguousarray(weights[:, None] * lut[None, lo:hi])
     out = np.empty(rows.shape[0])
-    run_in_chunks(_kernels.expected_at, rows.shape[0], rows, weights, lut, offset, out, min_chunk=MIN_CELLS_PER_THREAD)
+    run_in_chunks(_kernels.expected_at, rows.shape[0], rows, weighted, offset - lo, out,
+                  min_chunk=MIN_CELLS_PER_THREAD)
     return out
 
 
