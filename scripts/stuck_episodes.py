@@ -5,7 +5,7 @@
 Plays ``--episodes`` episodes (seeds 0, 1, ...) with a scripted policy (``emmi_gym.policies``; the
 random one draws among the valid slots, seeded with the episode's seed) and counts the decisions
 whose slot was empty (``info["target_kind"] == "none"``: with no target at all, slot 0 stays valid
-and the robot stands still), the episodes that had at least three such decisions and ended below
+and the robot turns in place), the episodes that had at least three such decisions and ended below
 the coverage target (stuck), and the coverage reached.
 """
 

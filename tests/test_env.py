@@ -435,6 +435,33 @@ def test_targets_are_offered_again_when_every_one_lies_by_a_blocked_attempt():
         pytest.fail("targets away from every blocked point were still offered after 30 rounds")
 
 
+def test_with_no_target_left_the_robot_turns_in_place_and_the_filter_sees_it():
+    """move_base's rotate recovery: with every slot empty the robot turns in place for the stay (the
+    filter updates on the turns, which cleared the ghost walls that shut the robot in for good in
+    2 of 100 random-action episodes of Explore-v0); an empty slot picked while targets are left
+    still stands still, so turning (which raises EMMI) is not an action an agent can choose."""
+    from emmi_gym.env.emmi_env import STAY_STEPS
+
+    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env.reset(seed=0)
+    core = env.unwrapped
+    n = core.config.n_actions
+    target = next(t for t in core._slots if t is not None)
+    core._slots = [target] + [None] * (n - 1)
+    pose, updates, steps = core.sim.true_pose.copy(), core.slam.step, core.sim_steps
+    _, _, _, _, info = env.step(1)
+    assert info["target_kind"] == "none" and core.sim_steps == steps + STAY_STEPS
+    moved = core.sim.true_pose - pose  # the robot coasts to a stop from reset's drive
+    assert np.hypot(*moved[:2]) < 0.05 and abs(moved[2]) < 0.01 and core.slam.step == updates
+
+    core._slots = [None] * n
+    _, _, _, _, info = env.step(0)
+    assert info["target_kind"] == "none" and core.sim_steps == steps + 2 * STAY_STEPS
+    turned = STAY_STEPS * core.robot_config.control_period * core.robot_config.max_turn_rate
+    assert np.hypot(*(core.sim.true_pose[:2] - pose[:2])) < 0.05
+    assert core.slam.step - updates >= int(0.8 * turned / core.slam.config.angular_update)
+
+
 def test_a_wall_seen_on_the_way_makes_the_robot_replan():
     from emmi_gym.navigation.planner import path_obstructed, travel_costs
     from emmi_gym.grid import GridGeometry

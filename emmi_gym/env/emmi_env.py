@@ -42,8 +42,9 @@ class EmmiEnv(gym.Env):
     the expected map and follows it with its estimated pose until it arrives, is
     blocked (a target whose attempt ended blocked is not offered again this episode), or
     ``macro_timeout`` simulator steps pass. An invalid (empty, masked)
-    slot makes it stand still for 150 simulator steps (15 s), which costs time (the masks keep
-    slot 0 valid for that when no target is left); so does a target it cannot set off for. In velocity
+    slot makes it stand still for 150 simulator steps (15 s), which costs time; so does a target it
+    cannot set off for. With no target left at all (the masks keep slot 0 valid then) it turns in
+    place for those 15 s instead, as move_base's rotate recovery. In velocity
     mode an action is (v, omega) in [-1, 1] scaled to the robot's limits (or one of
     five discrete commands: stop, forward, left, right, back), one simulator step.
     """
@@ -197,10 +198,19 @@ class EmmiEnv(gym.Env):
         if outcome == "blocked" or (outcome == "stayed" and target is not None):  # never offer it again
             self._blocked.append((target.x, target.y))
             self._stale = True
-        if outcome == "stayed":  # an empty slot, or a target the robot cannot leave for: stand still
+        if outcome == "stayed":  # an empty slot, or a target the robot cannot leave for
+            omega = self._recovery_turn_rate()
             for _ in range(STAY_STEPS):
-                self._sim_step(0.0, 0.0)
+                self._sim_step(0.0, omega)
         return "none" if target is None else target.kind
+
+    def _recovery_turn_rate(self) -> float:
+        """How fast the robot turns while it stays: in place at full rate when no slot holds a target
+        (move_base's rotate recovery: the scans of the turns update the filter, which can clear a wall
+        the particles dispute that shut the robot in; standing still never updates it), else not at
+        all. So an agent that picks an empty slot while targets are left gains nothing by it (a turn
+        in place re-scans the same cells, which raises EMMI, docs/environments.md)."""
+        return self.robot_config.max_turn_rate if all(slot is None for slot in self._slots) else 0.0
 
     def _scan_now(self) -> np.ndarray:
         """The laser scan at the current simulator time, cast once and shared by the safety layer and the filter."""
