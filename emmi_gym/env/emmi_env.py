@@ -281,7 +281,7 @@ class EmmiEnv(gym.Env):
     def action_masks(self) -> np.ndarray:
         """Which actions are valid now (for sb3-contrib's MaskablePPO): the non-empty target slots.
 
-        Never all False: with no target at all, slot 0 (standing still) stays valid.
+        Never all False: with no target at all, slot 0 (turning in place) stays valid.
         """
         if self.config.action_mode != "waypoint":
             return np.ones(getattr(self.action_space, "n", 1), dtype=bool)
