@@ -423,19 +423,20 @@ def resample_rows(start, stop, table, parents, cells, candidates):
     particle i took the grid of ``parents[i]`` (survivors keep their own: ``parents[parents] ==
     parents``). The cells whose codes now agree in every grid go to ``candidates[start:]`` (their
     mean hit points may still differ); returns how many. The others stay disputed without
-    reading a grid. Chunks of rows may run on parallel threads."""
+    reading a grid. Chunks of rows may run on parallel threads. Unsigned column indices (no
+    wraparound test, see ``certainty._kernels.expected_at``) and no branch on whether a row agrees
+    (every cell is written at the next free place): 1.3-1.4 -> 1.2 ms at the 60 m building's collapse."""
     m = table.shape[1]
     n = start
     for k in range(start, stop):
-        first = table[k, parents[0]]
+        first = table[k, np.uint64(parents[0])]
         same = True
         for i in range(m):  # parents[i] survives: its column is written only with its own code
-            code = table[k, parents[i]]
+            code = table[k, np.uint64(parents[i])]
             table[k, i] = code
             same &= code == first
-        if same:
-            candidates[n] = cells[k]
-            n += 1
+        candidates[n] = cells[k]
+        n += same
     return n - start
 
 
