@@ -118,6 +118,9 @@ def test_metrics_are_those_of_the_certainty_functions(loop_runs):
         certainty.joint_entropy(slam.paths, slam.cell_codes.to_logodds(slam.maps.codes), w, logodds=True),
         rel=1e-9)
     assert last.mean_information_best == pytest.approx(certainty.mean_information(slam.best_map()), abs=1e-12)
+    # the headings' sines and cosines the filter keeps along its paths follow them through its resamplings
+    assert any(r.resampled for r in rows)
+    assert last.path_entropy == certainty.path_entropy(slam.paths, w)
     assert last.neff == pytest.approx(1 / np.sum(w**2))
     assert 0 < last.emmi < 1 and 1 <= last.neff <= slam.config.particles
     assert all(set(r.phase_ms) == {"scan_matching", "insertion", "weighting", "resampling", "metrics"} for r in rows)

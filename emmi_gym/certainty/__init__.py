@@ -19,7 +19,8 @@ from .information import (
     observation_labels,
     observed_cells,
 )
-from .pose import DEFAULT_DET_FLOOR, joint_entropy, loop_displacement_spread, path_entropy, pose_entropy
+from .pose import (DEFAULT_DET_FLOOR, heading_sincos, joint_entropy, loop_displacement_spread, path_entropy,
+                   path_entropy_of_parts, pose_entropy)
 from .weights import effective_sample_size, normalize_weights, weight_entropy
 
 __all__ = [
@@ -33,6 +34,7 @@ __all__ = [
     "emmi_of_parts",
     "expected_map",
     "expected_map_of_cells",
+    "heading_sincos",
     "joint_entropy",
     "joint_entropy_of_parts",
     "loop_displacement_spread",
@@ -45,6 +47,7 @@ __all__ = [
     "observation_labels",
     "observed_cells",
     "path_entropy",
+    "path_entropy_of_parts",
     "pose_entropy",
     "weight_entropy",
     "weighted_map_entropy",

@@ -165,11 +165,23 @@ def _wrapped(d):
 
 
 @nb.njit(cache=True)
-def pose_entropies(paths, weights, det_floor, log_2pie_3):
+def heading_sincos(headings, out):
+    """``out[..., 0]``, ``out[..., 1]``: sin and cos of each heading (rad), with the kernels' own ``math.sin``
+    and ``math.cos`` (NumPy's vectorised ones may differ in the last bit), for :func:`pose_entropies`."""
+    flat, sincos = headings.reshape(-1), out.reshape(-1, 2)
+    for k in range(flat.size):
+        sincos[k, 0] = math.sin(flat[k])
+        sincos[k, 1] = math.cos(flat[k])
+
+
+@nb.njit(cache=True)
+def pose_entropies(paths, sincos, weights, det_floor, log_2pie_3):
     """Gaussian differential entropy (nats) of the weighted poses at each step of (M, T, 3) paths.
 
-    Per step: weighted mean of x, y; circular mean of theta; the weighted covariance
-    with theta wrapped about it; ``0.5 * (ln (2 pi e)^3 + ln max(det, det_floor))``.
+    Per step: weighted mean of x, y; circular mean of theta (from ``sincos`` (M, T, 2), the headings'
+    sines and cosines of :func:`heading_sincos`: a path's poses do not change, so a caller that keeps
+    them computes each once, not at every call); the weighted covariance with theta wrapped about it;
+    ``0.5 * (ln (2 pi e)^3 + ln max(det, det_floor))``.
     """
     m, t_steps = paths.shape[0], paths.shape[1]
     out = np.empty(t_steps)
@@ -179,8 +191,8 @@ def pose_entropies(paths, weights, det_floor, log_2pie_3):
             wi = weights[i]
             mx += wi * paths[i, t, 0]
             my += wi * paths[i, t, 1]
-            s += wi * math.sin(paths[i, t, 2])
-            c += wi * math.cos(paths[i, t, 2])
+            s += wi * sincos[i, t, 0]
+            c += wi * sincos[i, t, 1]
         mt = math.atan2(s, c)
         cxx = cxy = cxt = cyy = cyt = ctt = 0.0
         for i in range(m):

@@ -104,6 +104,7 @@ class RBPF:
         self.accumulated_log_weights = np.zeros(config.particles)
         self._best: int | None = None  # kept until the weights change
         self._paths = np.zeros((config.particles, 64, 3))
+        self._path_sincos = np.zeros((config.particles, 64, 2))  # their headings' sines and cosines
         self._n_path = 0
         self._last_odometry: np.ndarray | None = None
         self.step = 0
@@ -334,6 +335,7 @@ class RBPF:
         self.maps.resample(indices)
         self.poses = self.poses[indices]
         self._paths[:, :self._n_path] = self._paths[indices, :self._n_path]
+        self._path_sincos[:, :self._n_path] = self._path_sincos[indices, :self._n_path]
         self.accumulated_log_weights = self.accumulated_log_weights[indices]
         self.log_weights = np.zeros_like(self.log_weights)
         self._best = None
@@ -341,7 +343,9 @@ class RBPF:
     def _append_path(self) -> None:
         if self._n_path == self._paths.shape[1]:
             self._paths = np.concatenate([self._paths, np.zeros_like(self._paths)], axis=1)
+            self._path_sincos = np.concatenate([self._path_sincos, np.zeros_like(self._path_sincos)], axis=1)
         self._paths[:, self._n_path] = self.poses
+        self._path_sincos[:, self._n_path] = certainty.heading_sincos(self.poses)
         self._n_path += 1
 
     def _ensure_extent(self) -> None:
@@ -364,7 +368,7 @@ class RBPF:
         cpu0, t0 = time.process_time(), time.perf_counter()
         lut, counts = self.cell_codes.probability, self.maps.counts
         w = self.weights
-        path_entropy = certainty.path_entropy(self.paths, w)
+        path_entropy = certainty.path_entropy_of_parts(self.paths, self._path_sincos[:, :self._n_path], w)
         metrics = UpdateMetrics(
             step=step, time=timestamp,
             emmi=certainty.emmi_of_parts(self.maps.disputed_codes(), w, self.maps.agreed_counts, lut=lut),
