@@ -159,12 +159,13 @@ def insert_scans(start, stop, codes, hits, ever_hit, counts, coarse, block, pose
     cell, or a crossed cell whose code moved) go to ``touched`` (size H * W), each once, and their
     number is returned with the new ``serial``: a crossed cell that every grid already held at the
     free clamp keeps its code and its agreement, so the caller need not look at it again (in a
-    mapped area most of the cells a scan crosses: on Intel's log, a median 64% of those it touched). ``stamp`` (H, W) int64
-    remembers which cells this scan already updated, and whether they are listed: ``serial`` grows
-    by 3 per particle, whose ids are serial + 1 (an end point's cell, listed), serial + 2 (a crossed
-    cell, not listed) and serial + 3 (a crossed cell, listed); a stamp at or below the call's first
-    serial was left by an earlier scan (:func:`_listed`). Chunks of particles may run on parallel
-    threads, each with its own ``stamp`` and ``touched`` (see :func:`merge_touched`).
+    mapped area most of the cells a scan crosses: on Intel's log a median 64% of those it touched).
+    ``stamp`` (H, W) int64 remembers which cells this scan already updated, and whether they are
+    listed: ``serial`` grows by 3 per particle, whose ids are serial + 1 (an end point's cell,
+    listed), serial + 2 (a crossed cell, not listed) and serial + 3 (a crossed cell, listed); a
+    stamp at or below the call's first serial was left by an earlier scan (:func:`_listed`). Chunks
+    of particles may run on parallel threads, each with its own ``stamp`` and ``touched`` (see
+    :func:`merge_touched`).
     """
     h, w = codes.shape[1], codes.shape[2]
     n_rays = ray_angles.size
