@@ -61,8 +61,11 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     options = dict(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,
                    matching_range=args.matching_range)
     config = RBPFConfig(**options) if args.preset is None else RBPFConfig.preset(args.preset, **options)
-    result = replay(log, config, max_range=args.max_range, seed=args.seed, progress=not args.quiet,
-                    every_scan=args.every_scan)
+    try:
+        result = replay(log, config, max_range=args.max_range, seed=args.seed, progress=not args.quiet,
+                        every_scan=args.every_scan)
+    except ValueError as exc:  # what the log lacks (lasers, odometry, a maximum range) or asks (maps too large)
+        raise ValueError(f"{args.log}: {exc}") from None
     if not result.rows:
         raise ValueError(f"{args.log}: no scan could be used (none had odometry)")
     files = write_outputs(result, args.out)

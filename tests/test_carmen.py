@@ -109,6 +109,21 @@ def test_record_command_writes_a_readable_log(tmp_path, capsys):
 SCAN = " ".join(["2.5"] * 180)
 
 
+def test_replay_command_names_the_log_that_lacks_what_it_needs(tmp_path, capsys):
+    from emmi_gym.cli import main
+
+    for name, content, says in [("empty.log", "", "has no FLASER, RAWLASER1 or ROBOTLASER1 line"),
+                                ("no_odometry.log", "RAWLASER1 0 -1.57 3.1415 0.0174 30 0.01 0 2 2.5 2.5 0 1.0 h 1.0\n",
+                                 "no scan in the log has odometry")]:
+        path = tmp_path / name
+        path.write_text(content)
+        with pytest.raises(SystemExit) as exit_info:
+            main(["replay", str(path), "--out", str(tmp_path / "out"), "--quiet"])
+        assert exit_info.value.code == 2
+        err = capsys.readouterr().err
+        assert f"{path}: " in err and says in err, err
+
+
 def test_glued_nul_and_binary_lines_are_errors_with_their_line_number():
     good = f"FLASER 180 {SCAN} 0 0 0 0 0 0 1.0 host 1.0"
     glued = "ODOM 0 0 0 0 0 0 1.0 host 1.0" + good  # the newline lost: the scan must not vanish
