@@ -56,7 +56,7 @@ def path_entropy(paths, weights, *, log_weights: bool = False, det_floor: float 
         raise ValueError(f"{p.shape[0]} paths but {w.shape[0]} weights")
     if p.shape[1] == 0:
         raise ValueError("paths must hold at least one pose")
-    return float(_kernels.pose_entropies(p, heading_sincos(p), w, det_floor, _LOG_2PIE_3).mean())
+    return path_entropy_of_parts(p, heading_sincos(p), weights, log_weights=log_weights, det_floor=det_floor)
 
 
 def heading_sincos(poses) -> np.ndarray:
