@@ -6,13 +6,12 @@ import argparse
 import sys
 from pathlib import Path
 
-
 DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMMI reward: run the paper's A/B "
                "experiment, train and evaluate agents, benchmark rewards, record and replay CARMEN logs.")
 
 
 def _cmd_metrics(args: argparse.Namespace) -> int:
-    from .examples import fig5_contrast
+    from .certainty.examples import fig5_contrast
 
     rows = fig5_contrast()
     keys = list(rows[0])
@@ -52,7 +51,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from .carmen import read_log
+    from .formats.carmen import read_log
     from .slam import RBPFConfig
     from .slam.replay import replay, write_outputs
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 import argparse
 import json
 
-from emmi_gym.errors import excerpt
+from emmi_gym.inputs.errors import excerpt
+from emmi_gym.inputs.validation import OptionError, build
 from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam.config import PRESETS
-from emmi_gym.validation import OptionError, build
 
 
 def json_object(parser: argparse.ArgumentParser, option: str, text: str) -> dict:

@@ -197,7 +197,7 @@ def main() -> None:
     from _options import checked, json_object  # here, not in the workers: they may run older code
 
     from emmi_gym.env import EnvConfig
-    from emmi_gym.validation import build
+    from emmi_gym.inputs.validation import build
 
     options = json_object(parser, "--options", args.options)
     if options and args.against:

@@ -4,7 +4,7 @@
 
 Data: the loop_corridor loop (start -> decision -> start) recorded once with the
 default laser (360 deg, 180 beams, 8 m); the filter runs on a fixed 25 m x 20 m grid
-of 0.1 m cells covering the loop, its kernels on one thread per core (``emmi_gym.threads``).
+of 0.1 m cells covering the loop, its kernels on one thread per core (``emmi_gym.concurrency.threads``).
 Every update includes the expected map and EMMI and the other metrics. The first 10
 updates (numba loading) are not timed. ``--table`` adds M in {5, 15, 30, 60} and beams in
 {90, 180, 360}; ``--extents`` runs the same loop on square grids of 30, 50 and 100 m: the
@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from emmi_gym.grid import GridGeometry
+from emmi_gym.geometry.grid import GridGeometry
 from emmi_gym.slam import RBPF, RBPFConfig
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world
 

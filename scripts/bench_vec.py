@@ -23,7 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym
-from emmi_gym.parallel import one_kernel_thread
+from emmi_gym.concurrency.parallel import one_kernel_thread
 
 gym.register_envs(emmi_gym)
 

@@ -20,7 +20,7 @@ from _options import checked, json_object
 
 from emmi_gym.env import ENV_IDS, EnvConfig
 from emmi_gym.experiments.comparison import SCORES, ComparisonSettings, compare, markdown_table, plot_pair, run_episode
-from emmi_gym.validation import build
+from emmi_gym.inputs.validation import build
 from emmi_gym.world.map_sets import map_set_files
 
 

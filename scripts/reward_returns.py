@@ -58,8 +58,8 @@ def discounted_return(steps: list[dict], variant: str, time_cost: float, gamma: 
 
 
 def main() -> None:
+    from emmi_gym.concurrency.parallel import run_in_processes
     from emmi_gym.env.config import EnvConfig
-    from emmi_gym.parallel import run_in_processes
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=8)

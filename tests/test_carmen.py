@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from emmi_gym import carmen
+from emmi_gym.formats import carmen
 from emmi_gym.world.laser import LaserConfig
 from emmi_gym.world.loader import load_world
 from emmi_gym.world.recording import drive_route, write_carmen

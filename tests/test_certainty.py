@@ -202,7 +202,7 @@ def test_fig5_contradicting_particles():
 
 
 def test_fig5_example_rows():
-    from emmi_gym.examples import fig5_contrast
+    from emmi_gym.certainty.examples import fig5_contrast
 
     agree, disagree = fig5_contrast()
     assert disagree["emmi_bits"] < agree["emmi_bits"] - 0.01
@@ -367,7 +367,7 @@ def test_observed_cells_decide_by_the_entropy_rule_of_eq_10():
 def test_emmi_of_parts_is_the_same_on_any_number_of_threads():
     """The disputed cells are split among threads (here 90 000 of them, three chunks): the same EMMI,
     bit for bit, as on one thread, and equal to EMMI over the whole grids."""
-    from emmi_gym.threads import kernel_threads, set_kernel_threads
+    from emmi_gym.concurrency.threads import kernel_threads, set_kernel_threads
 
     rng = np.random.default_rng(7)
     grids = rng.integers(-120, 120, (4, 300, 310)).astype(np.int8)

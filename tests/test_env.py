@@ -348,7 +348,7 @@ def test_spinning_in_place_farms_emmi_but_not_emmi_coverage():
 def test_pooled_map_keeps_thin_walls():
     """A wall one cell thick under 0.5 m pixels of 0.1 m cells still shows in every pixel it crosses."""
     from emmi_gym.env.observation import MapPooling
-    from emmi_gym.grid import GridGeometry
+    from emmi_gym.geometry.grid import GridGeometry
 
     geometry = GridGeometry(0.1, 0.0, 0.0, 100, 100)
     em = np.full(geometry.shape, 0.5)
@@ -463,8 +463,8 @@ def test_with_no_target_left_the_robot_turns_in_place_and_the_filter_sees_it():
 
 
 def test_a_wall_seen_on_the_way_makes_the_robot_replan():
+    from emmi_gym.geometry.grid import GridGeometry
     from emmi_gym.navigation.planner import path_obstructed, travel_costs
-    from emmi_gym.grid import GridGeometry
 
     geometry = GridGeometry(0.1, 0.0, 0.0, 60, 100)      # 10 m x 6 m, all known free
     em = np.full(geometry.shape, 0.1)
@@ -489,7 +489,7 @@ def test_a_loop_through_unseen_space_is_offered_by_the_length_of_its_route():
     """A U-shaped path of 22 m whose start lies 10 m away, 8 m of them unknown: the route is 10 m
     (the loop closes 2.2 times its length), though the planner's cost, twice per unknown metre, is
     18 m, which alone would fail the 1.5 ratio."""
-    from emmi_gym.grid import GridGeometry
+    from emmi_gym.geometry.grid import GridGeometry
     from emmi_gym.navigation.candidates import LOOP_RATIO, revisit_targets
     from emmi_gym.navigation.planner import travel_costs
 
@@ -513,7 +513,7 @@ def test_a_loop_through_unseen_space_is_offered_by_the_length_of_its_route():
 def test_planning_covers_the_explored_part_of_a_large_map_with_the_same_costs(monkeypatch):
     """A room of 6 m x 4 m explored in a 60 m x 40 m map: the costs are computed over the room plus
     PLANNING_MARGIN, and equal those over the whole map (paths, route lengths, frontiers)."""
-    from emmi_gym.grid import GridGeometry
+    from emmi_gym.geometry.grid import GridGeometry
     from emmi_gym.navigation import planner
     from emmi_gym.navigation.candidates import frontier_targets
 
@@ -547,7 +547,7 @@ def test_a_wall_seen_at_glancing_angles_hides_no_frontier_behind_it():
     cells just below it (values as on the real buildings' expected maps), unknown space behind. The
     only frontier is the corridor's open end; the wall lines used to give a row of frontier targets
     that vanished as the robot drove near."""
-    from emmi_gym.grid import GridGeometry
+    from emmi_gym.geometry.grid import GridGeometry
     from emmi_gym.navigation.candidates import frontier_targets
     from emmi_gym.navigation.planner import travel_costs
 
@@ -617,8 +617,8 @@ def test_an_undrivable_route_ends_reset_with_an_error_not_a_hang():
 
 
 def test_obstruction_checks_look_only_as_far_as_the_laser():
+    from emmi_gym.geometry.grid import GridGeometry
     from emmi_gym.navigation.planner import path_obstructed
-    from emmi_gym.grid import GridGeometry
 
     geometry = GridGeometry(0.1, 0.0, 0.0, 20, 200)
     expected = np.full(geometry.shape, 0.2)
@@ -630,8 +630,8 @@ def test_obstruction_checks_look_only_as_far_as_the_laser():
 
 
 def test_maps_beyond_the_memory_bound_are_refused_with_what_they_would_take():
+    from emmi_gym.concurrency.threads import kernel_threads, set_kernel_threads
     from emmi_gym.slam.occupancy import MapTooLarge
-    from emmi_gym.threads import kernel_threads, set_kernel_threads
 
     threads = kernel_threads()
     try:
@@ -644,7 +644,7 @@ def test_maps_beyond_the_memory_bound_are_refused_with_what_they_would_take():
 
 
 def test_map_accuracy_is_defined_when_nothing_is_known_to_both():
-    from emmi_gym.evaluation import map_accuracy
+    from emmi_gym.scoring.scores import map_accuracy
 
     assert map_accuracy(np.full((4, 4), 0.5), np.ones((4, 4), dtype=np.int8)) == 0.0
     env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL, laser={"max_range": 0.3}).unwrapped

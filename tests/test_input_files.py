@@ -6,10 +6,10 @@ import tracemalloc
 import pytest
 import yaml
 
+from emmi_gym.inputs.yaml_files import MAX_YAML_BYTES
 from emmi_gym.training.config import AgentConfigError, load_agent_config
 from emmi_gym.world import load_world
 from emmi_gym.world.spec import WorldFileError
-from emmi_gym.yaml_files import MAX_YAML_BYTES
 
 WORLD = """name: box
 bounds: {xmin: -3, ymin: -3, xmax: 3, ymax: 3}

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from emmi_gym.grid import GridGeometry
+from emmi_gym.geometry.grid import GridGeometry
 from emmi_gym.slam import CellCodes, ParticleMaps, RBPFConfig
 from emmi_gym.slam import _matching as MT
 from emmi_gym.world import LaserConfig, Simulator, load_world

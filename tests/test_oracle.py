@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import emmi_gym  # noqa: F401 (registers the ids)
-from emmi_gym.evaluation import map_labels, oracle_accuracy, wall_consistency
-from emmi_gym.grid import GridGeometry
-from emmi_gym.oracle import OracleMap
+from emmi_gym.geometry.grid import GridGeometry
+from emmi_gym.scoring.oracle import OracleMap
+from emmi_gym.scoring.scores import map_labels, oracle_accuracy, wall_consistency
 from emmi_gym.slam import RBPF, RBPFConfig
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world
 

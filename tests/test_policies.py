@@ -54,7 +54,7 @@ class _Slots:
     """A waypoint env as the policies see it: slots, masks, loop spreads, the grid's resolution."""
 
     def __init__(self, targets, spreads, resolution=0.1):
-        from emmi_gym.grid import GridGeometry
+        from emmi_gym.geometry.grid import GridGeometry
 
         self.targets, self.loop_spreads = targets, spreads
         self.geometry = GridGeometry(resolution, 0.0, 0.0, 10, 10)

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emmi_gym.carmen import read_log
+from emmi_gym.formats.carmen import read_log
 from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam.replay import replay
 

@@ -1,14 +1,15 @@
 """The RBPF behaves as a grid SLAM should, and as the paper's figures say."""
 
 import copy
+
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from emmi_gym import certainty
-from emmi_gym.evaluation import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
-from emmi_gym.grid import GridGeometry
+from emmi_gym.geometry.grid import GridGeometry
+from emmi_gym.scoring.scores import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.slam import RBPF, CellCodes, ParticleMaps, RBPFConfig
 from emmi_gym.slam.resampling import survivors_in_place, systematic_resample
 from emmi_gym.slam.revisits import RevisitGrid, revisit_exponent
@@ -127,7 +128,7 @@ def test_metrics_are_those_of_the_certainty_functions(loop_runs):
 
 
 def test_chunks_cover_the_items_once_in_order_the_caller_s_first_and_largest():
-    from emmi_gym.threads import chunk_bounds, kernel_threads, set_kernel_threads
+    from emmi_gym.concurrency.threads import chunk_bounds, kernel_threads, set_kernel_threads
 
     threads = kernel_threads()
     try:
@@ -150,7 +151,7 @@ def test_the_caller_runs_the_calls_no_pool_thread_has_started():
     each call runs once, results in order), instead of waiting for the pool."""
     import threading
 
-    from emmi_gym.threads import kernel_threads, run_calls, set_kernel_threads
+    from emmi_gym.concurrency.threads import kernel_threads, run_calls, set_kernel_threads
 
     started, release = threading.Event(), threading.Event()
 
@@ -174,7 +175,7 @@ def test_the_caller_runs_the_calls_no_pool_thread_has_started():
 
 
 def test_same_seed_same_filter_bit_for_bit_on_any_number_of_threads():
-    from emmi_gym.threads import kernel_threads, set_kernel_threads
+    from emmi_gym.concurrency.threads import kernel_threads, set_kernel_threads
 
     threads = kernel_threads()
     try:

@@ -201,7 +201,7 @@ def test_a_ctrl_c_while_the_kernel_threads_start_does_not_hang_the_exit():
 
     script = "\n".join([
         "import threading",
-        "from emmi_gym import threads",
+        "from emmi_gym.concurrency import threads",
         "threads.set_kernel_threads(2)",
         "start = threading.Thread.start",
         "def start_then_interrupt(thread):",

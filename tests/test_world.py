@@ -11,11 +11,11 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
+from emmi_gym.geometry.motion import compose_local, compose_motion, relative_motion, wrap_angle
 from emmi_gym.world.generator import GeneratorConfig, generate_world
 from emmi_gym.world.ground_truth import FREE, OCCUPIED, UNKNOWN, is_reachable, rasterise
 from emmi_gym.world.laser import LaserConfig
 from emmi_gym.world.loader import builtin_worlds, load_world, parse_world
-from emmi_gym.motion import compose_local, compose_motion, relative_motion, wrap_angle
 from emmi_gym.world.odometry import OdometryNoise, noisy_motion
 from emmi_gym.world.simulator import RobotConfig, Simulator
 from emmi_gym.world.spec import ROBOT_RADIUS, WorldFileError
@@ -399,7 +399,7 @@ def test_resting_against_a_wall_is_not_a_collision():
 
 def test_turning_on_the_spot_is_all_rot2():
     """A few microns of jitter must not become rot1 (its arbitrary angle would scale the noise)."""
-    from emmi_gym.motion import MIN_TRANSLATION, motion_std
+    from emmi_gym.geometry.motion import MIN_TRANSLATION, motion_std
 
     before, after = np.array([1.0, 2.0, 0.3]), np.array([1.0 + 3e-6, 2.0 - 2e-6, 0.45])
     rot1, trans, rot2 = relative_motion(before, after)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..threads import MIN_CELLS_PER_THREAD, run_in_chunks
+from ..concurrency.threads import MIN_CELLS_PER_THREAD, run_in_chunks
 from . import _kernels
 from .grids import ParticleGrids, cell_rows
 from .information import DEFAULT_OBSERVED_TOL, cell_information, information_and_observed, observed_cells

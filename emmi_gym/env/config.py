@@ -4,12 +4,24 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..inputs.validation import (
+    Boolean,
+    Choice,
+    Integer,
+    Mapping,
+    Maybe,
+    Preset,
+    Real,
+    Text,
+    build,
+    check_fields,
+    fail,
+    option,
+)
 from ..slam.config import MAX_PARTICLES, MIN_RESOLUTION, RBPFConfig
-from ..validation import (Boolean, Choice, Integer, Mapping, Maybe, Preset, Real, Text, build, check_fields, fail,
-                          option)
 from ..world import GeneratorConfig, LaserConfig, OdometryNoise
-from ..world.presets import LASER_PRESETS, ODOMETRY_PRESETS, laser_config, odometry_config
 from ..world.images import DEFAULT_PIXEL_SIZE, PIXEL_SIZE
+from ..world.presets import LASER_PRESETS, ODOMETRY_PRESETS, laser_config, odometry_config
 
 REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage")
 ACTION_MODES = ("waypoint", "velocity")
@@ -51,7 +63,7 @@ class EnvConfig:
       :class:`OdometryNoise` fields (with an optional ``preset`` they change); ``slam``: a
       dict of :class:`RBPFConfig` fields; all checked when the config is made; ``particles`` and ``resolution`` set the filter's (not inside ``slam``).
 
-    Every field is typed and bounded (:mod:`emmi_gym.validation`); a mistake raises an
+    Every field is typed and bounded (:mod:`emmi_gym.inputs.validation`); a mistake raises an
     ``OptionError`` naming the field.
     """
 

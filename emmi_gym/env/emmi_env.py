@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from .. import certainty
-from ..evaluation import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
-from ..grid import GridGeometry
+from ..geometry.grid import GridGeometry
 from ..navigation.candidates import Target
-from ..oracle import OracleMap
 from ..navigation.executor import Limits, MacroActionExecutor
 from ..navigation.follower import WaypointFollower
+from ..scoring.oracle import OracleMap
+from ..scoring.scores import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
 from ..slam import RBPF
 from ..slam.occupancy import ParticleMaps
 from ..world import RobotConfig, Simulator, rasterise
@@ -312,7 +311,7 @@ class EmmiEnv(gym.Env):
 
     @property
     def oracle_map(self) -> np.ndarray:
-        """The oracle map now (:mod:`emmi_gym.oracle`): this episode's scans at the true poses, probabilities on
+        """The oracle map now (:mod:`emmi_gym.scoring.oracle`): this episode's scans at the true poses, probabilities on
         the grid of ``geometry`` (ground truth, for evaluation only)."""
         return self._oracle.probabilities()
 

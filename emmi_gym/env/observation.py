@@ -8,7 +8,7 @@ import numba as nb
 import numpy as np
 from gymnasium import spaces
 
-from ..grid import GridGeometry
+from ..geometry.grid import GridGeometry
 from ..navigation.planner import FREE_P, OCCUPIED_P
 
 UNKNOWN_PIXEL = 127

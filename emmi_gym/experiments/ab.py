@@ -17,9 +17,9 @@ import numpy as np
 from scipy import ndimage
 
 from ..certainty import observed_cells
-from ..evaluation import map_accuracy
-from ..parallel import run_in_processes
+from ..concurrency.parallel import run_in_processes
 from ..policies import make_policy
+from ..scoring.scores import map_accuracy
 from ..world.ground_truth import FREE, UNKNOWN
 
 #: The two arms of the experiment and their scripted policies.

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import gymnasium as gym
 import numpy as np
 
-from ..parallel import run_in_processes
+from ..concurrency.parallel import run_in_processes
 from ..policies import make_policy
 from .intervals import difference_interval, measure_interval
 

@@ -16,7 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..grid import GridGeometry
+from ..geometry.grid import GridGeometry
 from . import safety
 from .candidates import Target, candidate_slots
 from .follower import WaypointFollower

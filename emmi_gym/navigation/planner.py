@@ -4,7 +4,6 @@ check that tells the robot to replan when the map it learns on the way blocks it
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import numba as nb
@@ -13,7 +12,7 @@ from scipy import ndimage
 from skimage.graph import MCP_Geometric
 
 from ..certainty import observed_cells
-from ..grid import GridGeometry
+from ..geometry.grid import GridGeometry
 
 OCCUPIED_P = 0.65   # expected-map probability above which a cell is surely an obstacle
 BLOCKING_P = 0.55   # ... above which the planner keeps out: a wall blurred by disagreeing particles still blocks

@@ -400,7 +400,7 @@ def improved_proposal(start, stop, codes, hits, coarse, motion_samples, motion_m
     count with ``revisit_exponent`` in all. The proposal uses every beam either way.
 
     Proposes particles ``start`` to ``stop`` - 1: the particles are independent, so chunks of
-    them run at once on threads (:mod:`emmi_gym.threads`; the GIL is released), with the
+    them run at once on threads (:mod:`emmi_gym.concurrency.threads`; the GIL is released), with the
     same result whatever the number of threads.
     """
     lstep, astep = s.linear_step, s.angular_step

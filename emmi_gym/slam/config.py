@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from ..validation import Integer, Maybe, Real, Tuple, check_fields, fail, option
+from ..inputs.validation import Integer, Maybe, Real, Tuple, check_fields, fail, option
 
 #: Upper bounds: particles (each holds a whole map: 1000 of a 100 x 100 m world at 0.1 m take 1 GB)
 #: and the finest cell side.

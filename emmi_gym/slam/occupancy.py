@@ -8,8 +8,8 @@ import time
 import numpy as np
 
 from .. import certainty
-from ..grid import GridGeometry
-from ..threads import MIN_CELLS_PER_THREAD, chunk_bounds, run_calls, run_in_chunks
+from ..concurrency.threads import MIN_CELLS_PER_THREAD, chunk_bounds, run_calls, run_in_chunks
+from ..geometry.grid import GridGeometry
 from . import _kernels
 from .sensor_model import CellCodes
 

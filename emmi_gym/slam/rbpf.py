@@ -33,10 +33,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import certainty
-from ..grid import GridGeometry
-from ..motion import compose_local, local_delta, local_motion_std
-from ..threads import run_in_chunks
-from ..validation import MAX_LASER_RANGE, Real, check_value
+from ..concurrency.threads import run_in_chunks
+from ..geometry.grid import GridGeometry
+from ..geometry.motion import compose_local, local_delta, local_motion_std
+from ..inputs.validation import MAX_LASER_RANGE, Real, check_value
 from . import _matching
 from .config import RBPFConfig
 from .occupancy import ParticleMaps

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import carmen
-from ..evaluation import absolute_trajectory_error
-from ..grid import GridGeometry
-from ..motion import compose_motion
+from ..formats import carmen
+from ..geometry.grid import GridGeometry
+from ..geometry.motion import compose_motion
+from ..scoring.scores import absolute_trajectory_error
 from .config import RBPFConfig
 from .rbpf import RBPF, UpdateMetrics
 

@@ -30,7 +30,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..grid import GridGeometry
+from ..geometry.grid import GridGeometry
 
 
 def revisit_exponent(config, seen_again: int) -> float:

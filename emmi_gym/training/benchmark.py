@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from ..concurrency.parallel import run_in_processes
 from ..experiments.intervals import measure_interval
 from ..experiments.report import write_csv
-from ..parallel import run_in_processes
 from .config import AgentConfig
 from .episodes import PolicyActor, nanmean, run_episodes
 from .evaluate import EVALUATION_SEED, evaluate_model

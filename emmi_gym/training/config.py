@@ -18,8 +18,8 @@ import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from ..errors import FieldError
-from ..validation import (
+from ..inputs.errors import FieldError
+from ..inputs.validation import (
     Boolean,
     Check,
     Choice,
@@ -32,7 +32,7 @@ from ..validation import (
     check_value,
     option,
 )
-from ..yaml_files import YAML_SUFFIXES, read_yaml_file
+from ..inputs.yaml_files import YAML_SUFFIXES, read_yaml_file
 
 #: The algorithms a configuration may name: Stable-Baselines3's and sb3-contrib's classes.
 ALGORITHMS = ("PPO", "A2C", "MaskablePPO", "DQN", "SAC")

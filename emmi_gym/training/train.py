@@ -29,7 +29,7 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-from ..parallel import one_kernel_thread
+from ..concurrency.parallel import one_kernel_thread
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument
 from .loop_order import LoopOrderInfo

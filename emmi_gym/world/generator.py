@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import Integer, Real, check_fields, fail, option
+from ..inputs.validation import Integer, Real, check_fields, fail, option
 from .spec import Place, WorldSpec
 
 _LAYOUT = 0.1  # metres per layout cell; sizes are rounded to it

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from ..grid import GridGeometry
+from ..geometry.grid import GridGeometry
 from .spec import WorldSpec, point_segment_distance
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1

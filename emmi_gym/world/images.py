@@ -33,8 +33,20 @@ from PIL import Image, UnidentifiedImageError
 from scipy import ndimage
 from skimage.measure import approximate_polygon, find_contours
 
-from ..validation import Choice, Integer, Maybe, Real, Text, Tuple, build, check_fields, check_value, fail, option
-from ..yaml_files import read_yaml_file
+from ..inputs.validation import (
+    Choice,
+    Integer,
+    Maybe,
+    Real,
+    Text,
+    Tuple,
+    build,
+    check_fields,
+    check_value,
+    fail,
+    option,
+)
+from ..inputs.yaml_files import read_yaml_file
 from .spec import ROBOT_RADIUS, Place, WorldFileError, WorldSpec
 
 IMAGE_SUFFIXES = (".png", ".pgm")

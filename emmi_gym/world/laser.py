@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..validation import MAX_LASER_RANGE, Integer, Real, check_fields, option
+from ..inputs.validation import MAX_LASER_RANGE, Integer, Real, check_fields, option
 from ._raycast import capsule_grid, cast_rays
 
 #: Upper bound of the beams: real scanners have at most a few thousand.

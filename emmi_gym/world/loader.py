@@ -27,11 +27,18 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-from ..errors import excerpt
-from ..validation import Invalid, Real
-from ..yaml_files import YAML_SUFFIXES, read_yaml_file
-from .images import (DEFAULT_PIXEL_SIZE, IMAGE_SUFFIXES, dungeon_occupancy, is_map_server_file,
-                     map_server_occupancy, world_from_occupancy)
+
+from ..inputs.errors import excerpt
+from ..inputs.validation import Invalid, Real
+from ..inputs.yaml_files import YAML_SUFFIXES, read_yaml_file
+from .images import (
+    DEFAULT_PIXEL_SIZE,
+    IMAGE_SUFFIXES,
+    dungeon_occupancy,
+    is_map_server_file,
+    map_server_occupancy,
+    world_from_occupancy,
+)
 from .spec import ROBOT_RADIUS, Place, WorldFileError, WorldSpec, point_segment_distance
 
 _TOP_KEYS = {"name", "description", "bounds", "wall_thickness", "walls", "start", "places", "routes"}

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import excerpt
-from ..yaml_files import YAML_SUFFIXES
+from ..inputs.errors import excerpt
+from ..inputs.yaml_files import YAML_SUFFIXES
 from .generator import GeneratorConfig, generate_world
 from .images import DEFAULT_PIXEL_SIZE, IMAGE_SUFFIXES
 from .loader import load_world

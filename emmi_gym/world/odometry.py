@@ -1,4 +1,4 @@
-"""Noisy odometry: the odometry motion model of :mod:`emmi_gym.motion` plus a systematic drift.
+"""Noisy odometry: the odometry motion model of :mod:`emmi_gym.geometry.motion` plus a systematic drift.
 
 A relative motion is split into (rot1, trans, rot2); each part is perturbed with
 zero-mean Gaussian noise whose variance grows with the motion (the four alphas), and
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..motion import perturb_motion
-from ..validation import Real, check_fields, option
+from ..geometry.motion import perturb_motion
+from ..inputs.validation import Real, check_fields, option
 
 #: Upper bound of each alpha: at 1 a motion's noise is as large as the motion itself (the
 #: defaults are 0.0005-0.02); beyond, dead reckoning is meaningless and poses run off to 1e100s.

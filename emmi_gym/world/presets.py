@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from ..validation import Choice, OptionError, build, check_value, field_path
+from ..inputs.validation import Choice, OptionError, build, check_value, field_path
 from .laser import LaserConfig
 from .odometry import OdometryNoise
 

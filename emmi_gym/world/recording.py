@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import carmen
+from ..formats import carmen
 from ..navigation.follower import WaypointFollower
 from .simulator import Simulator
 

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
+from ..geometry.motion import compose_motion, relative_motion, wrap_angle
 from .laser import Laser, LaserConfig
-from ..motion import compose_motion, relative_motion, wrap_angle
 from .odometry import OdometryNoise, noisy_motion
 from .spec import ROBOT_RADIUS, WorldSpec
 

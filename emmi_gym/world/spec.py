@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import FieldError
+from ..inputs.errors import FieldError
 
 #: Radius of the simulated robot's round body, metres (a small indoor platform).
 ROBOT_RADIUS = 0.2

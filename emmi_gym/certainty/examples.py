@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .certainty import emmi, joint_entropy, mean_information, weighted_map_entropy
+from . import emmi, joint_entropy, mean_information, weighted_map_entropy
 
 
 def _room(shape=(40, 40), free=0.05, wall=0.95) -> np.ndarray:

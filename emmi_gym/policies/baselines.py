@@ -111,7 +111,7 @@ def distances_to(truth, place) -> np.ndarray:
     (inf in walls and outside), by scikit-image's cost-distance on the ground-truth grid."""
     from skimage.graph import MCP_Geometric
 
-    from .world.ground_truth import FREE
+    from ..world.ground_truth import FREE
 
     geometry = truth.geometry
     costs = np.where(truth.grid == FREE, 1.0, np.inf)

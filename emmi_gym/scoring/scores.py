@@ -10,8 +10,8 @@ import numba as nb
 import numpy as np
 from scipy import ndimage
 
-from .certainty import DEFAULT_OBSERVED_TOL, observation_labels
-from .grid import GridGeometry
+from ..certainty import DEFAULT_OBSERVED_TOL, observation_labels
+from ..geometry.grid import GridGeometry
 
 
 def align_se2(estimated_xy: np.ndarray, true_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

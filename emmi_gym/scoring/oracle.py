@@ -3,10 +3,10 @@
 It uses the filter's sensor model, grid and scans (the same scans the filter inserted,
 at the same updates), so it holds everything a perfectly localised robot would have
 mapped and nothing else: the ground truth against which SLAM's own error shows. The
-map accuracy against the floor plan (:func:`~emmi_gym.evaluation.map_accuracy`)
+map accuracy against the floor plan (:func:`~emmi_gym.scoring.scores.map_accuracy`)
 measures rasterisation, blur and unseen corners as much as SLAM; against the oracle
-(:func:`~emmi_gym.evaluation.oracle_accuracy`) a perfect run scores exactly 1.0, and
-:func:`~emmi_gym.evaluation.wall_consistency` catches doubled walls at revisited places.
+(:func:`~emmi_gym.scoring.scores.oracle_accuracy`) a perfect run scores exactly 1.0, and
+:func:`~emmi_gym.scoring.scores.wall_consistency` catches doubled walls at revisited places.
 The environments also read their coverage on it (what the scans swept), so that coverage
 measures exploration whatever the SLAM error.
 """
@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .evaluation import map_labels
-from .slam.occupancy import ParticleMaps
-from .slam.rbpf import RBPF
+from ..slam.occupancy import ParticleMaps
+from ..slam.rbpf import RBPF
+from .scores import map_labels
 
 
 class OracleMap:
@@ -41,6 +41,6 @@ class OracleMap:
         return self.maps.probabilities(0)
 
     def labels(self) -> np.ndarray:
-        """:func:`~emmi_gym.evaluation.map_labels` of :meth:`probabilities` (-1 unobserved, 0 free, 1 occupied),
+        """:func:`~emmi_gym.scoring.scores.map_labels` of :meth:`probabilities` (-1 unobserved, 0 free, 1 occupied),
         read off a table of the codes (the environment's coverage and scores need these, every filter update)."""
         return self._label_of_byte[self.maps.codes[0].view(np.uint8)]

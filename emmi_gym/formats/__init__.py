@@ -1,0 +1,1 @@
+"""Robot log formats: CARMEN logs, read and written (:mod:`.carmen`)."""

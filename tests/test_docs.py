@@ -1,0 +1,129 @@
+"""The reference pages stay in sync with the code: one page per registered id stating its registered
+keywords and its spaces as ``gym.make`` builds them, the options reference as the generator writes it
+now, and the site's navigation over every page."""
+
+from __future__ import annotations
+
+import ast
+import importlib.util
+import re
+from dataclasses import fields
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+import yaml
+
+import emmi_gym
+from emmi_gym.env.registration import ENV_IDS
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+
+gym.register_envs(emmi_gym)
+
+
+def marked_table(text: str, marker: str) -> list[list[str]]:
+    """The body rows of the Markdown table between ``<!-- marker ... -->`` and ``<!-- /marker -->``,
+    as lists of cells with their backticks removed."""
+    found = re.search(rf"<!-- {marker}\b.*?-->\n(.*?)<!-- /{marker} -->", text, re.S)
+    assert found, f"no table marked <!-- {marker} --> ... <!-- /{marker} -->"
+    lines = [line.strip() for line in found.group(1).strip().splitlines()]
+    assert len(lines) >= 3 and set(lines[1]) <= set("|- "), f"the {marker} block is not a Markdown table"
+    rows = []
+    for line in lines[2:]:
+        cells = [c.strip() for c in line.strip("|").split(" | ")]
+        rows.append([c[1:-1] if c.startswith("`") and c.endswith("`") else c for c in cells])
+    return rows
+
+
+def load_generator():
+    spec = importlib.util.spec_from_file_location("gen_options_doc", ROOT / "scripts" / "gen_options_doc.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_marked_tables_are_parsed_as_written():
+    text = ("<!-- spaces: x -->\n| space | value |\n| --- | --- |\n| `action_space` | `Discrete(8)` |\n"
+            "| `observation_space[\"map\"]` | `Box(0, 255, (2, 64, 64), uint8)` |\n<!-- /spaces -->\n")
+    assert marked_table(text, "spaces") == [["action_space", "Discrete(8)"],
+                                            ['observation_space["map"]', "Box(0, 255, (2, 64, 64), uint8)"]]
+    with pytest.raises(AssertionError):
+        marked_table(text, "registered-kwargs")
+
+
+@pytest.mark.parametrize("name", list(ENV_IDS))
+def test_each_id_has_a_page_with_its_registered_keywords(name):
+    page = DOCS / "envs" / f"{name}.md"
+    assert page.exists(), f"docs/envs/{name}.md is missing"
+    text = page.read_text()
+    spec = gym.spec(f"emmi_gym/{name}")
+    stated = {}
+    for row in marked_table(text, "registered-kwargs"):
+        assert len(row) == 3 and row[2], f"{page.name}: each keyword needs a value and what it sets: {row}"
+        assert row[0] not in stated, f"{page.name}: {row[0]} is listed twice"
+        stated[row[0]] = ast.literal_eval(row[1])
+    assert stated == spec.kwargs, (f"docs/envs/{name}.md states the keywords {stated}; the registration "
+                                   f"(emmi_gym/env/registration.py) sets {spec.kwargs}")
+    for heading in ("Description", "Default configuration", "Spaces", "Action space", "Observation space",
+                    "Rewards", "Starting state", "Episode end", "Registered id"):
+        assert f"\n## {heading}\n" in text, f"{page.name} has no '## {heading}' section"
+    assert f"`emmi_gym/{name}`" in text
+
+
+@pytest.mark.parametrize("name", list(ENV_IDS))
+def test_each_page_states_the_spaces_gym_make_builds(name):
+    text = (DOCS / "envs" / f"{name}.md").read_text()
+    env = gym.make(f"emmi_gym/{name}")
+    actual = {"action_space": str(env.action_space)}
+    observation = env.observation_space
+    if isinstance(observation, gym.spaces.Dict):
+        actual.update({f'observation_space["{key}"]': str(space) for key, space in observation.spaces.items()})
+    else:
+        actual["observation_space"] = str(observation)
+    env.close()
+    stated = dict(marked_table(text, "spaces"))
+    assert stated == actual, f"docs/envs/{name}.md states the spaces {stated}; gym.make builds {actual}"
+
+
+def test_the_environments_index_links_every_page():
+    text = (DOCS / "envs" / "index.md").read_text()
+    for name in ENV_IDS:
+        assert f"]({name}.md)" in text and f"]({name}.png)" in text, f"docs/envs/index.md lacks {name}"
+        assert (DOCS / "envs" / f"{name}.png").exists()
+
+
+def test_options_reference_is_what_the_generator_writes_now():
+    generator = load_generator()
+    expected = generator.render()
+    actual = (DOCS / "options.md").read_text()
+    assert actual == expected, f"docs/options.md is out of date: run `{generator.COMMAND}`"
+
+
+def test_every_option_has_a_help_line_in_the_reference():
+    generator = load_generator()
+    text = (DOCS / "options.md").read_text()
+    for cls, _ in generator.SECTIONS:
+        for f in fields(cls):
+            help_text = f.metadata.get("help", "")
+            assert help_text and "\n" not in help_text, f"{cls.__name__}.{f.name} has no one-line help="
+            assert f"| `{f.name}` |" in text and help_text.replace("|", "\\|") in text
+
+
+def nav_pages(items) -> list[str]:
+    pages = []
+    for item in items:
+        value = next(iter(item.values())) if isinstance(item, dict) else item
+        pages += nav_pages(value) if isinstance(value, list) else [value]
+    return pages
+
+
+def test_the_site_navigation_lists_every_page():
+    config = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
+    listed = nav_pages(config["nav"])
+    pages = sorted(str(p.relative_to(DOCS)) for p in DOCS.rglob("*.md"))
+    missing = [p for p in pages if p not in listed]
+    assert not missing, f"pages not in mkdocs.yml's nav: {missing}"
+    gone = [p for p in listed if not (DOCS / p).exists()]
+    assert not gone, f"mkdocs.yml's nav lists pages that do not exist: {gone}"
