@@ -67,32 +67,64 @@ class EnvConfig:
     ``OptionError`` naming the field.
     """
 
-    world: str | None = option("loop_corridor", Maybe(Text(), "a generated world per reset"))
-    generator: dict = option({}, Mapping())
-    pixel_size: float = option(DEFAULT_PIXEL_SIZE, PIXEL_SIZE)
-    start_at: str = option("decision", Choice(STARTS))
-    action_mode: str = option("waypoint", Choice(ACTION_MODES))
-    velocity_actions: str = option("continuous", Choice(VELOCITY_ACTIONS))
-    reward: str = option("emmi", Choice(REWARDS))
-    update_records: bool = option(False, Boolean())
-    reward_scale: float | None = option(None, Maybe(Real(0.0, 1e6, open_lo=True), "the reward's default scale"))
-    time_cost: float = option(0.002, Real(0.0, 1e3))
-    collision_cost: float = option(0.05, Real(0.0, 1e3))
-    coverage_target: float = option(0.9, Real(0.0, 1.0, open_lo=True))
-    particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"))
-    resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"))
-    laser: dict | str = option({}, Preset(tuple(LASER_PRESETS)))
-    odometry_noise: dict | str = option({}, Preset(tuple(ODOMETRY_PRESETS)))
-    slam: dict = option({}, Mapping())
-    observation: str = option("dict", Choice(OBSERVATIONS))
-    obs_size: int = option(64, Integer(16, 1024, "the observation holds obs_size^2 pixels per channel"))
-    egocentric: bool = option(False, Boolean())
-    egocentric_extent: float = option(16.0, Real(0.0, 1000.0, open_lo=True, unit="m"))
-    n_frontiers: int = option(6, Integer(1, 64))
-    n_revisits: int = option(2, Integer(0, 64))
-    max_decisions: int = option(60, Integer(1, 1_000_000))
-    max_sim_steps: int = option(12000, Integer(1, 100_000_000))
-    macro_timeout: int = option(900, Integer(1, 1_000_000))
+    world: str | None = option(
+        "loop_corridor", Maybe(Text(), "a generated world per reset"),
+        help="a built-in name, world or map_server file, floor-plan image or map set; None: generated per reset")
+    generator: dict = option({}, Mapping(),
+                             help="GeneratorConfig fields of the generated worlds (with world=None)")
+    pixel_size: float = option(DEFAULT_PIXEL_SIZE, PIXEL_SIZE,
+                               help="metres per pixel of a floor-plan image")
+    start_at: str = option(
+        "decision", Choice(STARTS),
+        help="'decision': reset first drives the world's to_decision route; 'start': begin at the start pose")
+    action_mode: str = option(
+        "waypoint", Choice(ACTION_MODES),
+        help="'waypoint': an action sends the robot to a target slot; 'velocity': (v, omega) for one step")
+    velocity_actions: str = option("continuous", Choice(VELOCITY_ACTIONS),
+                                   help="in velocity mode: a Box of (v, omega) in [-1, 1], or five discrete commands")
+    reward: str = option("emmi", Choice(REWARDS),
+                         help="the measure whose change over a step is the reward")
+    update_records: bool = option(False, Boolean(),
+                                  help="put the measures of every filter update of a step in info['rbpf_updates']")
+    reward_scale: float | None = option(None, Maybe(Real(0.0, 1e6, open_lo=True), "the reward's default scale"),
+                                        help="factor on the chosen measure's change; None: its default (REWARD_SCALES)")
+    time_cost: float = option(0.002, Real(0.0, 1e3),
+                              help="subtracted per simulator step, whatever the reward")
+    collision_cost: float = option(0.05, Real(0.0, 1e3),
+                                   help="subtracted per simulator step spent driving into a wall")
+    coverage_target: float = option(0.9, Real(0.0, 1.0, open_lo=True),
+                                    help="share of the reachable free space swept by the scans that ends the episode")
+    particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"),
+                            help="particles of the filter (each holds a whole map)")
+    resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"),
+                               help="cell side of the filter's maps")
+    laser: dict | str = option(
+        {}, Preset(tuple(LASER_PRESETS)),
+        help="a laser preset's name, or LaserConfig fields with an optional 'preset' they change")
+    odometry_noise: dict | str = option(
+        {}, Preset(tuple(ODOMETRY_PRESETS)),
+        help="an odometry preset's name, or OdometryNoise fields with an optional 'preset'")
+    slam: dict = option({}, Mapping(),
+                        help="RBPFConfig fields (particles and resolution are top-level options)")
+    observation: str = option(
+        "dict", Choice(OBSERVATIONS),
+        help="'dict': map, pose, certainty (and targets in waypoint mode); 'image': the map image alone")
+    obs_size: int = option(64, Integer(16, 1024, "the observation holds obs_size^2 pixels per channel"),
+                           help="side of the observation's map image, pixels")
+    egocentric: bool = option(False, Boolean(),
+                              help="the image shows a square round the estimated pose instead of the whole world")
+    egocentric_extent: float = option(16.0, Real(0.0, 1000.0, open_lo=True, unit="m"),
+                                      help="side of the egocentric image's square")
+    n_frontiers: int = option(6, Integer(1, 64),
+                              help="action slots of frontier targets")
+    n_revisits: int = option(2, Integer(0, 64),
+                             help="action slots of revisit (loop-closing) targets")
+    max_decisions: int = option(60, Integer(1, 1_000_000),
+                                help="waypoint decisions after which the episode is truncated")
+    max_sim_steps: int = option(12000, Integer(1, 100_000_000),
+                                help="simulator steps (0.1 s each) after which the episode is truncated")
+    macro_timeout: int = option(900, Integer(1, 1_000_000),
+                                help="simulator steps after which a macro-action ends")
 
     def __post_init__(self):
         check_fields(self)

@@ -193,11 +193,13 @@ class Tuple(Check):
             raise Invalid(self.describe()) from None
 
 
-def option(default, check: Check):
-    """A dataclass field with a default and the :class:`Check` that :func:`check_fields` applies."""
+def option(default, check: Check, help: str = ""):
+    """A dataclass field with a default, the :class:`Check` that :func:`check_fields` applies, and a
+    one-line ``help`` (what the field sets; docs/options.md is generated from it)."""
+    metadata = {"check": check, "help": help}
     if isinstance(default, (dict, list)):
-        return field(default_factory=lambda: type(default)(default), metadata={"check": check})
-    return field(default=default, metadata={"check": check})
+        return field(default_factory=lambda: type(default)(default), metadata=metadata)
+    return field(default=default, metadata=metadata)
 
 
 def check_fields(instance) -> None:

@@ -23,56 +23,89 @@ class RBPFConfig:
     Log-odds are stored as int8 codes of ``logodds_step`` (MRPT's layout).
     """
 
-    particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"))
-    resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"))
+    particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"),
+                            help="particles (each holds a whole map)")
+    resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"),
+                               help="cell side of the maps")
     # inverse sensor model
     # peaked, as the paper's Fig. 2 ("due to the sensor high accuracy"): one scan nearly
     # settles a cell, so a map's information reflects agreement more than repetition
-    logodds_occupied: float = option(2.0, Real(0.0, 20.0, open_lo=True))  # p = 0.88 for a hit
-    logodds_free: float = option(-1.2, Real(-20.0, 0.0, open_hi=True))  # p = 0.23 for a pass
-    logodds_clamp: float = option(6.0, Real(0.0, 20.0, open_lo=True))  # p in [0.0025, 0.9975]
-    logodds_step: float = option(0.05, Real(0.001, 1.0))  # one int8 code
+    logodds_occupied: float = option(2.0, Real(0.0, 20.0, open_lo=True),  # p = 0.88 for a hit
+                                     help="log-odds added to a beam's end cell (p = 0.88 for a hit)")
+    logodds_free: float = option(-1.2, Real(-20.0, 0.0, open_hi=True),  # p = 0.23 for a pass
+                                 help="log-odds added to each cell a beam crosses before its end (p = 0.23)")
+    logodds_clamp: float = option(6.0, Real(0.0, 20.0, open_lo=True),  # p in [0.0025, 0.9975]
+                                  help="cells stay within +- this log-odds")
+    logodds_step: float = option(0.05, Real(0.001, 1.0),  # one int8 code
+                                 help="log-odds of one int8 code of the stored maps")
     # A max-range reading frees this far (0: ignore such beams). Off by default: a
     # dropped echo also reads max range, and freeing along it would erase walls.
-    max_range_free: float = option(0.0, Real(0.0, 100.0, unit="m"))
+    max_range_free: float = option(0.0, Real(0.0, 100.0, unit="m"),
+                                   help="a max-range reading frees this far along its beam; 0: such beams are ignored")
     # Echoes beyond insertion_range only free the cells up to it (GMapping's maxUrange), and
     # beams beyond matching_range are left out of the matching and the weights; None: the
     # sensor's range. Long beams fix the heading: limit the insertion, not the matching.
-    insertion_range: float | None = option(None, Maybe(Real(0.0, 100.0, open_lo=True, unit="m"), "the sensor's range"))
-    matching_range: float | None = option(None, Maybe(Real(0.0, 100.0, open_lo=True, unit="m"), "the sensor's range"))
+    insertion_range: float | None = option(
+        None, Maybe(Real(0.0, 100.0, open_lo=True, unit="m"), "the sensor's range"),
+        help="echoes beyond it only free the cells up to it (GMapping's maxUrange); None: the sensor's range")
+    matching_range: float | None = option(
+        None, Maybe(Real(0.0, 100.0, open_lo=True, unit="m"), "the sensor's range"),
+        help="beams beyond it are left out of the matching and the weights; None: the sensor's range")
     # motion model of the filter, GMapping's (srr, srt, str, stt): translation from translation
     # (m/m), rotation from translation (rad/m), translation from rotation (m/rad), rotation
     # from rotation (rad/rad), deviations in the robot's frame (see motion.local_motion_std)
-    motion_noise: tuple[float, float, float, float] = option((0.05, 0.03, 0.02, 0.1), Tuple(Real(0.0, 10.0), 4))
+    motion_noise: tuple[float, float, float, float] = option(
+        (0.05, 0.03, 0.02, 0.1), Tuple(Real(0.0, 10.0), 4),
+        help="motion model (srr, srt, str, stt), GMapping's: deviations per metre or radian moved")
     # update policy (GMapping's linearUpdate / angularUpdate); 0 and 0: every scan an update
-    linear_update: float = option(0.5, Real(0.0, 100.0, unit="m"))
-    angular_update: float = option(0.3, Real(0.0, 2 * math.pi, unit="rad"))
+    linear_update: float = option(
+        0.5, Real(0.0, 100.0, unit="m"),
+        help="odometry travel after which a scan updates the filter (GMapping's linearUpdate)")
+    angular_update: float = option(
+        0.3, Real(0.0, 2 * math.pi, unit="rad"),
+        help="odometry turn after which a scan updates the filter (GMapping's angularUpdate)")
     # scan matching (see _matching): GMapping's lstep / astep / iterations, a search radius in
     # metres around each end point, and a coarse stage on blocks of about coarse_resolution
-    match_linear_step: float = option(0.05, Real(0.0, 1.0, open_lo=True, unit="m"))
-    match_angular_step: float = option(0.05, Real(0.0, math.pi, open_lo=True, unit="rad"))
-    match_refinements: int = option(3, Integer(1, 20))
-    match_max_iterations: int = option(60, Integer(1, 10_000))
+    match_linear_step: float = option(0.05, Real(0.0, 1.0, open_lo=True, unit="m"),
+                                      help="first translation step of the scan matcher's climb (GMapping's lstep)")
+    match_angular_step: float = option(0.05, Real(0.0, math.pi, open_lo=True, unit="rad"),
+                                       help="first heading step of the climb (GMapping's astep)")
+    match_refinements: int = option(3, Integer(1, 20),
+                                    help="times the climb halves its steps when no move helps")
+    match_max_iterations: int = option(60, Integer(1, 10_000),
+                                       help="most moves of the climb per scan")
     # beyond this an end point counts as unmatched
-    match_radius: float = option(0.15, Real(0.0, 5.0, open_lo=True, unit="m"))
+    match_radius: float = option(0.15, Real(0.0, 5.0, open_lo=True, unit="m"),
+                                 help="an end point with no surface within this counts as unmatched")
     # beams used while hill-climbing, evenly spread over the scan (GMapping climbs on all of
     # them; with 30 of a 180-degree scan the heading wanders and ACES is lost)
-    match_climb_beams: int = option(60, Integer(1, 10_000))
+    match_climb_beams: int = option(60, Integer(1, 10_000),
+                                    help="beams used while climbing, spread evenly over the scan")
     # block side of the coarse stage (a whole number of cells)
-    coarse_resolution: float = option(0.2, Real(0.0, 5.0, open_lo=True, unit="m"))
+    coarse_resolution: float = option(0.2, Real(0.0, 5.0, open_lo=True, unit="m"),
+                                      help="block side of the matcher's coarse stage (whole cells)")
     # first heading step of the coarse climb
-    coarse_angular_step: float = option(0.05, Real(0.0, math.pi, open_lo=True, unit="rad"))
-    coarse_trigger: float = option(0.6, Real(0.0, 1.0))  # run the coarse stage below this fraction of matched beams
+    coarse_angular_step: float = option(0.05, Real(0.0, math.pi, open_lo=True, unit="rad"),
+                                        help="first heading step of the coarse climb")
+    coarse_trigger: float = option(0.6, Real(0.0, 1.0),  # run the coarse stage below this fraction of matched beams
+                                   help="run the coarse stage below this share of matched beams")
     # likelihood and weights
-    likelihood_sigma: float = option(0.075, Real(0.001, 10.0, unit="m"))
+    likelihood_sigma: float = option(
+        0.075, Real(0.001, 10.0, unit="m"),
+        help="deviation of an end point's distance to the nearest surface in the likelihood")
     # an end point with no surface within match_radius scores as if it were this far off
     # (GMapping's nullLikelihood): the cost of a beam that sees a wall where the map has none
-    likelihood_null_distance: float = option(0.2, Real(0.0, 10.0, open_lo=True, unit="m"))
+    likelihood_null_distance: float = option(
+        0.2, Real(0.0, 10.0, open_lo=True, unit="m"),
+        help="the distance an unmatched end point scores as (GMapping's nullLikelihood)")
     # radians between the beams of the likelihood: neighbouring beams see the same surface
     # and their errors are not independent (Thrun et al. 2005, sec. 6.4, subsample the beams)
-    likelihood_beam_spacing: float = option(0.035, Real(0.0, 2 * math.pi, open_lo=True, unit="rad"))
+    likelihood_beam_spacing: float = option(
+        0.035, Real(0.0, 2 * math.pi, open_lo=True, unit="rad"),
+        help="angle between the beams of the likelihood (neighbours see the same surface)")
     # fall back to odometry below this fraction of matched beams
-    min_match_fraction: float = option(0.3, Real(0.0, 1.0))
+    min_match_fraction: float = option(0.3, Real(0.0, 1.0),
+                                       help="below this share of matched beams the pose falls back to odometry")
     # weights: exponents on the likelihood (MRPT's powFactor; GMapping's 1 / (ogain * M)), one
     # for the beams that see a place again and one for the others. A beam sees a place again
     # when its end point falls in a block (within revisit_reach of an end point then) that the
@@ -82,15 +115,23 @@ class RBPFConfig:
     # particle's path since (revisit_exponent); None: every beam with likelihood_exponent (see
     # slam/revisits.py). Chosen by measurement on loop_corridor (docs/slam.md): with a single
     # exponent the set resampled before the loop closed and EMMI's largest rise was elsewhere.
-    likelihood_exponent: float = option(0.004, Real(0.0, 1.0, open_lo=True))
-    resample_threshold: float = option(0.5, Real(0.0, 1.0))  # resample when Neff / M < this
-    revisit_gap: int | None = option(10, Maybe(Integer(1, 1_000_000), "every beam with likelihood_exponent"))
-    revisit_reach: float = option(0.4, Real(0.0, 10.0, unit="m"))
-    revisit_exponent: float = option(0.05, Real(0.0, 1.0))
+    likelihood_exponent: float = option(
+        0.004, Real(0.0, 1.0, open_lo=True),
+        help="exponent on the likelihood of beams that see no place again (MRPT's powFactor)")
+    resample_threshold: float = option(0.5, Real(0.0, 1.0),  # resample when Neff / M < this
+                                       help="resample when Neff / particles falls below this")
+    revisit_gap: int | None = option(
+        10, Maybe(Integer(1, 1_000_000), "every beam with likelihood_exponent"),
+        help="updates after which a place the scans reach again counts as seen again; None: one exponent")
+    revisit_reach: float = option(0.4, Real(0.0, 10.0, unit="m"),
+                                  help="distance round a scan's end points within which a place counts as reached")
+    revisit_exponent: float = option(0.05, Real(0.0, 1.0),
+                                     help="exponent on the likelihood of beams that see a place again")
     # at most this many beams' worth of places seen again per update (None: no bound): a laser
     # that reaches across a building sees places again at almost every update (revisits.py);
     # 30-45 suit a 30 m laser, and the default keeps the 8 m lasers' closures at full strength
-    revisit_beams: int | None = option(None, Maybe(Integer(1, 100_000), "no bound"))
+    revisit_beams: int | None = option(None, Maybe(Integer(1, 100_000), "no bound"),
+                                       help="most beams' worth of places seen again per update; None: no bound")
 
     def __post_init__(self):
         check_fields(self)

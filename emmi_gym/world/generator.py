@@ -29,14 +29,22 @@ MAX_EXTENT = 400.0
 class GeneratorConfig:
     """Parameters of :func:`generate_world`."""
 
-    nx: int = option(4, Integer(2, MAX_JUNCTIONS))
-    ny: int = option(3, Integer(2, MAX_JUNCTIONS))
-    spacing: float = option(6.0, Real(1.6, MAX_SPACING, unit="m"))
-    corridor_width: float = option(2.0, Real(0.8, MAX_SPACING / 2, unit="m"))
-    n_loops: int = option(2, Integer(0, 2 * MAX_JUNCTIONS**2))
-    room_probability: float = option(0.6, Real(0.0, 1.0))
-    room_size: float = option(4.0, Real(0.0, 2 * MAX_SPACING, open_lo=True, unit="m"))
-    wall_thickness: float = option(0.25, Real(0.05, 2.0, unit="m"))
+    nx: int = option(4, Integer(2, MAX_JUNCTIONS),
+                     help="junctions of the lattice along x")
+    ny: int = option(3, Integer(2, MAX_JUNCTIONS),
+                     help="junctions of the lattice along y")
+    spacing: float = option(6.0, Real(1.6, MAX_SPACING, unit="m"),
+                            help="distance between neighbouring junctions")
+    corridor_width: float = option(2.0, Real(0.8, MAX_SPACING / 2, unit="m"),
+                                   help="width of the corridors (at most spacing / 2)")
+    n_loops: int = option(2, Integer(0, 2 * MAX_JUNCTIONS**2),
+                          help="corridors added to a random spanning tree, each closing one independent loop")
+    room_probability: float = option(0.6, Real(0.0, 1.0),
+                                     help="chance that a dead end opens into a square room")
+    room_size: float = option(4.0, Real(0.0, 2 * MAX_SPACING, open_lo=True, unit="m"),
+                              help="side of a room")
+    wall_thickness: float = option(0.25, Real(0.05, 2.0, unit="m"),
+                                   help="thickness of the walls")
 
     def __post_init__(self):
         check_fields(self)

@@ -22,11 +22,16 @@ class LaserConfig:
     ``max_range``, as real scanners report a missing echo).
     """
 
-    fov: float = option(2.0 * math.pi, Real(0.0, 2.0 * math.pi, open_lo=True, unit="radians"))
-    n_beams: int = option(180, Integer(1, MAX_BEAMS, "each beam is cast at every simulator step"))
-    max_range: float = option(8.0, Real(0.0, MAX_LASER_RANGE, open_lo=True, unit="m"))
-    range_sigma: float = option(0.02, Real(0.0, 1.0, unit="m"))
-    drop_probability: float = option(0.01, Real(0.0, 1.0, open_hi=True))
+    fov: float = option(2.0 * math.pi, Real(0.0, 2.0 * math.pi, open_lo=True, unit="radians"),
+                        help="field of view, centred ahead")
+    n_beams: int = option(180, Integer(1, MAX_BEAMS, "each beam is cast at every simulator step"),
+                          help="beams per scan, spread evenly over the field of view")
+    max_range: float = option(8.0, Real(0.0, MAX_LASER_RANGE, open_lo=True, unit="m"),
+                              help="range; a beam with no echo reads this")
+    range_sigma: float = option(0.02, Real(0.0, 1.0, unit="m"),
+                                help="Gaussian range noise, one sigma")
+    drop_probability: float = option(0.01, Real(0.0, 1.0, open_hi=True),
+                                     help="chance that a beam returns no echo (reads max_range)")
 
     def __post_init__(self):
         check_fields(self)

@@ -34,11 +34,16 @@ class OdometryNoise:
     median 0.14 rad); ``scripts/odometry_drift.py`` measures it.
     """
 
-    rot_from_rot: float = option(0.02, Real(0.0, MAX_ALPHA))
-    rot_from_trans: float = option(0.003, Real(0.0, MAX_ALPHA))
-    trans_from_trans: float = option(0.01, Real(0.0, MAX_ALPHA))
-    trans_from_rot: float = option(0.0005, Real(0.0, MAX_ALPHA))
-    heading_drift: float = option(0.0015, Real(-1.0, 1.0, unit="rad/m"))
+    rot_from_rot: float = option(0.02, Real(0.0, MAX_ALPHA),
+                                 help="alpha1: rotation noise from rotation (rad^2/rad^2)")
+    rot_from_trans: float = option(0.003, Real(0.0, MAX_ALPHA),
+                                   help="alpha2: rotation noise from translation (rad^2/m^2)")
+    trans_from_trans: float = option(0.01, Real(0.0, MAX_ALPHA),
+                                     help="alpha3: translation noise from translation (m^2/m^2)")
+    trans_from_rot: float = option(0.0005, Real(0.0, MAX_ALPHA),
+                                   help="alpha4: translation noise from rotation (m^2/rad^2)")
+    heading_drift: float = option(0.0015, Real(-1.0, 1.0, unit="rad/m"),
+                                  help="systematic heading drift per metre travelled, signed (a wheel-radius mismatch)")
 
     def __post_init__(self):
         check_fields(self)
