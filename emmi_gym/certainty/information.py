@@ -101,7 +101,7 @@ def information_and_observed(p_flat: np.ndarray, observed_tol: float) -> tuple[f
     """(Information over observed cells in bits, eq. 9, number of observed cells, eq. 10) of a flat float
     grid, block by block: the cells within :func:`unobserved_halfwidth` of 0.5 are set aside without a
     logarithm (most of a map is unknown), the others' logarithms come from NumPy's vectorised ``log``
-    (several cells per instruction; a scalar ``log`` per cell took three quarters of EMMI's pass)."""
+    (several cells per instruction, where a scalar ``log`` per cell would dominate the pass)."""
     max_bits = max_entropy_bits(observed_tol)
     halfwidth = unobserved_halfwidth(max_bits)
     p_flat = np.ascontiguousarray(p_flat).ravel()

@@ -75,8 +75,8 @@ class MacroActionExecutor:
         costmap when stuck: again with only cells of p > ``RECOVERY_BLOCKING_P`` as obstacles (a ghost
         wall of particles that disagree can shut the robot in a slot of its map), then both again with
         the blocked points forgotten (the one frontier left can lie by a point where an attempt ended
-        blocked before the map showed the way: the robot then stood still to the end of the episode,
-        4 of 100 random-action episodes of ``Explore-v0``)."""
+        blocked before the map showed the way; without it the robot would stand still to the end of
+        the episode)."""
         pose = robot.pose_estimate()
         planning_map = with_scan_layer(expected.copy(), self.scan_layer(robot, pose))
         for avoided in (blocked, ()):

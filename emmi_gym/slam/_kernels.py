@@ -58,11 +58,10 @@ def scan_rays(ranges, angles, gaps, max_range, free_lengths, resolution):
     sub-ray reaches as far as the nearer of the two beams (each beam's own length: its
     range, or ``free_lengths[b]`` for one that hits nothing within ``max_range``), and only
     frees cells, up to but not its end cell: only real end points claim occupancy, and a
-    sub-ray never enters a shadow. Lengths interpolated between the two beams, as on a
-    continuous surface, reached past the wall wherever the range noise put it a cell
-    further than the wall's cell: far walls seen at a slant, whose cells between end points
-    get no hit from the same scan, were then freed more often than hit, and on Freiburg 079's
-    30 m scans the map lost them (ATE 0.157-0.206 m against 0.107-0.122 m now, docs/slam.md).
+    sub-ray never enters a shadow. A length interpolated between the two beams, as on a
+    continuous surface, would reach past a far wall seen at a slant wherever the range noise
+    put it a cell further, and free that wall's cells between end points (which get no hit
+    from the same scan) more often than they are hit.
 
     A sub-ray starts only where it is needed: where the rays already there, between which it
     lies, are a cell apart. The sub-rays of a gap bisect it in turn (first the one halfway
@@ -72,8 +71,8 @@ def scan_rays(ranges, angles, gaps, max_range, free_lengths, resolution):
     distance r spans more than ``resolution / r`` radians as seen from the laser), where the
     sub-ray starts. It starts at most two cells before its end, so that it still crosses the
     cells next to the end cells of its neighbours, which are not freed. The same cells are
-    freed as by sub-rays from the laser (the insertion's tests compare with those), in 23-39%
-    less time on the radish logs' 30 m scans, where sub-rays reach far (docs/slam.md).
+    freed as by sub-rays from the laser (the insertion's tests compare with those), without
+    walking the cells near the laser again on long beams.
     Returns (angle offsets, lengths, kinds, start distances) of all rays, relative to the
     laser heading; kinds are RAY_HIT, RAY_FREE or RAY_BOUNDED; a beam starts at 0.
     """
@@ -159,7 +158,7 @@ def insert_scans(start, stop, codes, hits, ever_hit, counts, coarse, block, pose
     cell, or a crossed cell whose code moved) go to ``touched`` (size H * W), each once, and their
     number is returned with the new ``serial``: a crossed cell that every grid already held at the
     free clamp keeps its code and its agreement, so the caller need not look at it again (in a
-    mapped area most of the cells a scan crosses: on Intel's log a median 64% of those it touched).
+    mapped area, most of the cells a scan crosses).
     ``stamp`` (H, W) int64 remembers which cells this scan already updated, and whether they are
     listed: ``serial`` grows by 3 per particle, whose ids are serial + 1 (an end point's cell,
     listed), serial + 2 (a crossed cell, not listed) and serial + 3 (a crossed cell, listed); a
@@ -226,8 +225,8 @@ def insert_scans(start, stop, codes, hits, ever_hit, counts, coarse, block, pose
                     break
                 if stamp[cy, cx] < hit_id:
                     listed = _listed(stamp[cy, cx], first)
-                    # inc_free < 0 moves the code unless it sits at the clamp (tested here: the same test
-                    # as a value _add_clamped returned made the kernel 45% slower)
+                    # inc_free < 0 moves the code unless it sits at the clamp (tested before the update:
+                    # cheaper than a flag returned by _add_clamped)
                     changed = grid[cy, cx] > -clamp
                     _add_clamped(grid, counts[i], coarse[i], block, cy, cx, inc_free, clamp)
                     if changed and not listed:
@@ -271,10 +270,8 @@ def merge_touched(touched, n_touched, stamp, first, other, n_other):
 
 #: ``status`` of a cell on which the particles' grids differ (agreeing cells hold their common code).
 DISPUTED = 1000
-#: Cells ahead whose mean hit points :func:`agreement_of_hits` asks the caches for (``prefetch_row``):
-#: 16 took 1.9 ms with the caches cold on the 60 m building's collapse, against 2.9 ms without, and
-#: 2.3 and 1.9 ms for 4 and 64. Counted in flagged cells since those are listed first: 8, 16, 32 and 64
-#: ahead took 1.56, 1.40, 1.31-1.37 and 1.37-1.41 ms there (a copy of the maps, caches not flushed).
+#: Flagged cells ahead whose mean hit points :func:`agreement_of_hits` asks the caches for
+#: (``prefetch_row``): far enough for the cache misses to overlap, near enough to stay cached.
 PREFETCH_AHEAD = 32
 
 
@@ -321,9 +318,8 @@ def agreement_of_hits(start, stop, codes, hits, ever_hit, particles, cells, out)
     resampling, from the disputed cells' table): only the mean hit points are compared, and only where
     ``ever_hit`` (most cells that come to agree lie in open space, where no scan ever ended). The
     flagged cells are listed first, without a branch (a cell is written at the next free place, which
-    moves on only for a flagged one), then compared: a branch on the flag per cell was a coin toss to
-    the predictor (38% flagged at the 60 m building's collapse), and the comparison took 1.8 ms there
-    instead of 1.4."""
+    moves on only for a flagged one), then compared: a branch on the flag per cell would be a coin
+    toss to the branch predictor."""
     first = particles[0]
     flagged = np.empty(stop - start, dtype=np.int32)
     n = 0
@@ -428,7 +424,7 @@ def unlist_agreed(cells, agreement, status, agreed_counts, disputed, table, n_di
 @nb.njit(cache=True)
 def sorted_cells(cells):
     """``cells`` (non-negative int32 flat indices) in increasing order: an LSD radix sort, 11 bits a
-    pass (NumPy's comparison sort took ten times as long on 300 000 cells in no order)."""
+    pass (far faster than a comparison sort on hundreds of thousands of cells)."""
     out, spare = cells.copy(), np.empty_like(cells)
     top = out.max() if out.size else 0
     shift = 0
@@ -455,7 +451,7 @@ def resample_rows(start, stop, table, parents, cells, candidates):
     mean hit points may still differ); returns how many. The others stay disputed without
     reading a grid. Chunks of rows may run on parallel threads. Unsigned column indices (no
     wraparound test, see ``certainty._kernels.expected_at``) and no branch on whether a row agrees
-    (every cell is written at the next free place): 1.3-1.4 -> 1.2 ms at the 60 m building's collapse."""
+    (every cell is written at the next free place)."""
     m = table.shape[1]
     n = start
     for k in range(start, stop):
@@ -471,8 +467,8 @@ def resample_rows(start, stop, table, parents, cells, candidates):
 
 
 #: Disputed cells of one row at most this many cells apart are copied as one span at resampling (the
-#: agreed cells between hold the same values in every grid, so copying them changes nothing). On the
-#: 60 m building's resamplings 64 copied fastest: 16 and 256 took a quarter longer.
+#: agreed cells between hold the same values in every grid, so copying them changes nothing): shorter
+#: gaps make more ``memcpy`` calls, longer ones copy more cells.
 SPAN_GAP = 64
 
 
@@ -483,7 +479,7 @@ def copy_spans(cells, width, block, max_gap):
     span), and the flat indices ``[start, stop)`` of the blocks of ``block x block`` cells that they
     reach in the grid of blocks (``coarse``, rows of ``ceil(width / block)`` blocks)."""
     n, row_end, last = 0, 0, 0
-    for k in range(cells.size):  # count the spans first: a buffer for one span per cell was fresh memory
+    for k in range(cells.size):  # count the spans first: a buffer of one span per cell is fresh memory
         cell = cells[k]
         if not (cell < row_end and cell - last < max_gap):
             row_end = (cell // width + 1) * width

@@ -1,15 +1,14 @@
 """Memory intrinsics for numba kernels: ``copy_rows`` (``memcpy``) and ``prefetch_row``.
 
 Numba compiles a slice assignment (``dst[a:b] = src[a:b]``) into an element-by-element
-loop, and LLVM did not vectorise that loop, nor a hand-written one, over the particles'
-grids: at resampling, copying spans of a few hundred bytes that way ran at about 2 GB/s,
-fifteen times slower than ``memcpy`` on the same spans. ``copy_rows`` emits LLVM's
-``memcpy`` itself, as NumPy's own copies do.
+loop, which LLVM does not vectorise over the particles' grids: spans of a few hundred bytes
+copied that way run far slower than by ``memcpy``. ``copy_rows`` emits LLVM's ``memcpy``
+itself, as NumPy's own copies do.
 
 Comparing a cell across nine particles' grids at resampling waits on nine cache misses, grids
 megabytes apart; the hardware prefetcher does not follow such gathers. ``prefetch_row`` asks for
-a row some cells ahead (LLVM's ``prefetch``), so that the misses overlap: a third less time
-there with the caches cold, as they are at a resampling."""
+a row some cells ahead (LLVM's ``prefetch``), so that the misses overlap (the caches are cold
+at a resampling)."""
 
 from __future__ import annotations
 

@@ -78,7 +78,7 @@ class RBPFConfig:
     match_radius: float = option(0.15, Real(0.0, 5.0, open_lo=True, unit="m"),
                                  help="an end point with no surface within this counts as unmatched")
     # beams used while hill-climbing, evenly spread over the scan (GMapping climbs on all of
-    # them; with 30 of a 180-degree scan the heading wanders and ACES is lost)
+    # them; too few of a 180-degree scan let the heading wander)
     match_climb_beams: int = option(60, Integer(1, 10_000),
                                     help="beams used while climbing, spread evenly over the scan")
     # block side of the coarse stage (a whole number of cells)
@@ -113,8 +113,8 @@ class RBPFConfig:
     # particle's own recent map differs between particles by noise that the weights re-count
     # update after update (likelihood_exponent, small), a place seen again tests the
     # particle's path since (revisit_exponent); None: every beam with likelihood_exponent (see
-    # slam/revisits.py). Chosen by measurement on loop_corridor (docs/slam.md): with a single
-    # exponent the set resampled before the loop closed and EMMI's largest rise was elsewhere.
+    # slam/revisits.py): with one exponent on every beam the set resamples along a plain
+    # corridor, before the loop closes, and the closure's evidence is lost.
     likelihood_exponent: float = option(
         0.004, Real(0.0, 1.0, open_lo=True),
         help="exponent on the likelihood of beams that see no place again (MRPT's powFactor)")
@@ -159,21 +159,16 @@ class RBPFConfig:
 
 
 #: Named settings for other robots than the simulator's (the defaults). ``radish-noisy``: the
-#: classic CARMEN logs (SICK LMS, 180 degrees, keyframes) with the odometry noise of
-#: ``shared/datasets/radish-noisy`` (alphas 0.0004, 0.0001, 0.0004, 0.0001, a heading drift of
-#: 0.002 rad/m, a 1% scale error), smaller than the simulator's, so a tighter motion model (with
-#: the defaults ACES ends 1.5-2.4 m off, with GMapping's own 0.1, 0.2, 0.1, 0.2 it is lost);
-#: 90 climbing beams (a 180-degree scan pins the heading less than a 360-degree one);
-#: tempering 0.003 on every beam, which keeps Intel's first loop free of resampling until it
-#: closes (places seen again weighted apart, as by the defaults, are not measured well enough
-#: on these logs yet: docs/slam.md); and a weaker pass (-0.8, p = 0.31), since a 30 m beam
-#: that grazes a far wall frees its cells before it reaches its end cell (Intel's median ATE
-#: over nine runs 0.070 -> 0.053 m, ACES's 0.177 -> 0.123 m, CSAIL and Freiburg 079 within
-#: their spread); and cells clamped at +-9 log-odds instead of 6 (codes of 0.1), so that what
-#: was seen many times, free space and walls alike, outlasts a few contrary readings (beams
-#: grazing a wall, anything that moves) and a place seen again on a long tour still matches it
-#: (Freiburg 079's median 0.112 -> 0.092 m, the others within their spread; +-12 took ACES's
-#: from 0.123 to 0.152 m). Measured with scripts/slam_benchmark.py, see docs/slam.md.
+#: classic CARMEN logs (SICK LMS, 180 degrees, 30 m, keyframes) with the odometry noise of the
+#: radish-noisy set (alphas 0.0004, 0.0001, 0.0004, 0.0001, a heading drift of 0.002 rad/m, a 1%
+#: scale error), smaller than the simulator's, so a tighter motion model; 90 climbing beams (a
+#: 180-degree scan pins the heading less than a 360-degree one); tempering 0.003 on every beam
+#: (30 m beams in small rooms see places again at almost every update), which keeps Intel's
+#: first loop free of resampling until it closes; a weaker pass (-0.8, p = 0.31), since a 30 m
+#: beam that grazes a far wall crosses its cells before it reaches its end cell; and cells
+#: clamped at +-9 log-odds (codes of 0.1), so that what was seen many times, free space and
+#: walls alike, outlasts a few contrary readings and a place seen again on a long tour still
+#: matches it. Its figures: docs/benchmarks.md.
 PRESETS = {
     "radish-noisy": dict(motion_noise=(0.03, 0.02, 0.01, 0.05), match_climb_beams=90, likelihood_exponent=0.003,
                          revisit_gap=None, logodds_free=-0.8, logodds_clamp=9.0, logodds_step=0.1),

@@ -2,9 +2,8 @@
 
 A particle's map of the last few updates was built from that particle's own poses, so a new
 scan fits it about equally well whatever the particle's path; the differences in that fit
-are the map's discretisation noise, correlated from one update to the next (measured on
-``loop_corridor``: lag-1 correlation 0.6-0.8 of the per-particle weight increments), and
-weights computed on every beam re-count them update after update until the particle set
+are the map's discretisation noise, correlated from one update to the next (overlapping
+scans meet the same map again), and weights computed on every beam re-count them update after update until the particle set
 resamples along a plain corridor. Beams that end where the scans came back to after many
 updates test each particle's whole path since: that is the evidence a loop closure brings.
 ``RBPFConfig.revisit_exponent`` weighs those beams, ``likelihood_exponent`` the rest (the
@@ -17,9 +16,8 @@ after it last had been (seen again: it stays so, since the map there still holds
 earlier visit saw). The same beams are tested for every particle, from the best particle's
 predicted pose, so the weights compare like with like.
 
-A laser that reaches across a building sees places again at almost every update (on a 60 m
-drive with a 30 m laser, 72 of 90 likelihood beams at the median update, against none along
-``loop_corridor``'s corridors with 8 m lasers): ``RBPFConfig.revisit_beams`` then bounds how
+A laser that reaches across a building sees places again at almost every update (an 8 m
+laser in ``loop_corridor``'s corridors, only where the loop closes): ``RBPFConfig.revisit_beams`` then bounds how
 much they count, as if at most that many beams saw a place again (:func:`revisit_exponent`).
 """
 

@@ -28,10 +28,9 @@ class OdometryNoise:
     - ``trans_from_trans`` (alpha3, m^2/m^2), ``trans_from_rot`` (alpha4, m^2/rad^2),
     - ``heading_drift`` (rad per metre travelled, signed).
 
-    Defaults (with the 0.1 s control period): driving the ``loop_corridor`` loop
-    (start -> decision -> back to the start, 74 m), dead reckoning ends a median
-    2.1 m from the truth, more than 1 m away in 27 of 30 seeds (heading off by a
-    median 0.14 rad); ``scripts/odometry_drift.py`` measures it.
+    The defaults (with the 0.1 s control period) leave dead reckoning metres off after the
+    74 m ``loop_corridor`` loop, so that closing it matters; ``scripts/odometry_drift.py``
+    measures the drift of each preset.
     """
 
     rot_from_rot: float = option(0.02, Real(0.0, MAX_ALPHA),
