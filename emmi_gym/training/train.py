@@ -49,15 +49,14 @@ class TrainResult:
 
 
 #: torch threads of the learner unless told otherwise, beside env processes and in evaluations: the
-#: envs need the cores (torch's default threads beside busy env workers made PPO 5-20x slower here).
+#: envs need the cores (torch's default threads beside busy env workers slow PPO several times over).
 DEFAULT_TORCH_THREADS = 1
 
 
 def training_torch_threads(config: AgentConfig) -> int:
     """torch threads for training ``config``: :data:`DEFAULT_TORCH_THREADS` beside env subprocesses, one
     per core when the envs run in this process (the learner and the envs then take turns, never
-    competing for the cores: SAC on ``ExploreVelocity-v0`` trained 1.33 times as fast on two threads
-    as on one here)."""
+    competing for the cores)."""
     return DEFAULT_TORCH_THREADS if _subprocesses(config.n_envs, config.vec_env) else max(1, os.cpu_count() or 1)
 
 
