@@ -139,12 +139,15 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = replace(config, total_timesteps=args.timesteps)
     if args.seed is not None:
         config = replace(config, seed=args.seed)
+    if args.ray is not None:
+        config = replace(config, vec_env="ray")
     set_torch_threads(training_torch_threads(config) if args.torch_threads is None else args.torch_threads)
     out = args.out or f"runs/{Path(args.config).stem}_seed{config.seed}"
     print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
           f"{out}/tb)")
-    result = train(config, out, resume=args.resume, progress=not args.quiet)
+    result = train(config, out, resume=args.resume, progress=not args.quiet,
+                   ray_address=None if args.ray in (None, "env") else args.ray)
     if result.interrupted:
         print(f"\ninterrupted at {result.timesteps} steps: saved {result.model_path}; continue with --resume")
         return 130
@@ -239,6 +242,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--seed", type=int, default=None, help="override seed")
     tr.add_argument("--out", default=None, help="run folder (default runs/<config>_seed<seed>)")
     tr.add_argument("--resume", action="store_true", help="continue from the run folder's latest checkpoint")
+    tr.add_argument("--ray", nargs="?", const="env", default=None, metavar="ADDRESS",
+                    help="run the env workers as Ray actors (vec_env: ray) on the cluster at ADDRESS ('local': a "
+                         "Ray instance on this machine; no ADDRESS: RAY_ADDRESS, else local)")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
     _torch_threads_option(tr, "1 beside env subprocesses, which need the cores; one per core when the envs "
                               "run in this process")

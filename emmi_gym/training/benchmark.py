@@ -19,6 +19,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..concurrency.parallel import run_in_processes
+from ..concurrency.ray_cluster import connect_ray
 from ..experiments.intervals import measure_interval
 from ..experiments.report import write_csv
 from .config import AgentConfig
@@ -121,14 +122,7 @@ def _action_mode(config: AgentConfig) -> str:
 
 
 def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
-    try:
-        import ray
-    except ImportError:
-        raise ValueError("--ray needs Ray: pip install 'emmi-gym[ray]'") from None
-    started_here = not ray.is_initialized()
-    if started_here:
-        ray.init(address=None if address == "local" else address, include_dashboard=False,
-                 logging_level="ERROR", log_to_driver=False)
+    ray, started_here = connect_ray(address)
     try:
         remote = ray.remote(num_cpus=1)(run_job)
         pending = [remote.remote(job) for job in jobs]

@@ -37,7 +37,7 @@ from ..inputs.yaml_files import YAML_SUFFIXES, read_yaml_file
 #: The algorithms a configuration may name: Stable-Baselines3's and sb3-contrib's classes.
 ALGORITHMS = ("PPO", "A2C", "MaskablePPO", "DQN", "SAC")
 POLICIES = ("MultiInputPolicy", "CnnPolicy", "MlpPolicy", "TargetScoringPolicy")
-VEC_ENVS = ("subproc", "dummy")
+VEC_ENVS = ("subproc", "dummy", "ray")
 _KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "discount_unit", "n_envs", "vec_env",
          "total_timesteps", "seed", "eval", "checkpoint_freq")
 

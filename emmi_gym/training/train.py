@@ -84,20 +84,28 @@ def make_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_w
     return LoopOrderInfo(gym.make(env_id, render_mode=render_mode, **kwargs))
 
 
-def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, evaluation: bool = False):
-    """SB3 vectorised envs (Monitor-wrapped): subprocesses when asked and there is more than one env;
-    with ``evaluation``, envs made with the held-out evaluation's keywords (``eval.env_kwargs``)."""
+def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, evaluation: bool = False,
+                 ray_address: str | None = None):
+    """SB3 vectorised envs (Monitor-wrapped): subprocesses when asked and there is more than one env, Ray
+    actors with ``vec_env="ray"`` (on the cluster at ``ray_address``; ``None``: ``RAY_ADDRESS``, else a
+    local instance); with ``evaluation``, envs made with the held-out evaluation's keywords
+    (``eval.env_kwargs``)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
 
-    subprocesses = _subprocesses(n_envs, vec_env)
     kwargs = config.eval_env_kwargs if evaluation else config.env_kwargs
+    if vec_env == "ray":
+        from .ray_vec_env import RayVecEnv
+
+        return sb3_make_vec_env(partial(make_env, config.env_id, kwargs), n_envs=n_envs, seed=seed,
+                                vec_env_cls=RayVecEnv, vec_env_kwargs={"address": ray_address})
+    subprocesses = _subprocesses(n_envs, vec_env)
     return sb3_make_vec_env(partial(make_env, config.env_id, kwargs, vec_worker=subprocesses),
                             n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if subprocesses else DummyVecEnv)
 
 
 def _subprocesses(n_envs: int, vec_env: str) -> bool:
-    """Whether :func:`make_vec_env` runs the envs in subprocesses."""
-    return vec_env == "subproc" and n_envs > 1
+    """Whether :func:`make_vec_env` runs the envs in other processes (subprocesses or Ray actors)."""
+    return vec_env == "ray" or (vec_env == "subproc" and n_envs > 1)
 
 
 def _handles_ctrl_c() -> bool:
@@ -224,7 +232,7 @@ def close_vec_env(env, timeout: float = 3.0) -> None:
     """Close vectorised envs even after an interrupt left a subprocess exchange half done (SB3's
     ``close`` would wait for replies already read, for ever): ask each worker to close, wait up to
     ``timeout`` seconds, then terminate those still running."""
-    if not isinstance(env, SubprocVecEnv) or env.closed:
+    if not isinstance(env, SubprocVecEnv) or not env.processes or env.closed:  # Ray actors close themselves
         env.close()
         return
     for remote in env.remotes:
@@ -252,9 +260,10 @@ def load_run_config(model_path) -> AgentConfig:
 
 
 def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool = True,
-          verbose: int = 0) -> TrainResult:
+          verbose: int = 0, ray_address: str | None = None) -> TrainResult:
     """Train ``config`` into ``run_dir`` (see the module docstring); with ``resume``, continue from the
-    folder's latest checkpoint up to ``config.total_timesteps``."""
+    folder's latest checkpoint up to ``config.total_timesteps``; ``ray_address``: the Ray cluster of
+    ``vec_env: ray`` (see :func:`make_vec_env`)."""
     from stable_baselines3.common.callbacks import CallbackList
 
     run_dir = Path(run_dir)
@@ -268,7 +277,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     with open(run_dir / "config.yaml", "w") as f:
         yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
 
-    env = make_vec_env(config, config.n_envs, config.seed, config.vec_env)
+    env = make_vec_env(config, config.n_envs, config.seed, config.vec_env, ray_address=ray_address)
     eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True)
     cls = algorithm_class(config.algorithm)
     if start is not None:
