@@ -127,3 +127,20 @@ def test_the_site_navigation_lists_every_page():
     assert not missing, f"pages not in mkdocs.yml's nav: {missing}"
     gone = [p for p in listed if not (DOCS / p).exists()]
     assert not gone, f"mkdocs.yml's nav lists pages that do not exist: {gone}"
+
+
+#: Public modules without an API page, and why.
+NOT_IN_API = {"emmi_gym.cli": "the command line has its own page, docs/cli.md"}
+
+
+def test_every_public_module_has_an_api_page():
+    package = ROOT / "emmi_gym"
+    modules = {".".join(p.relative_to(ROOT).with_suffix("").parts) for p in package.rglob("*.py")
+               if not any(part.startswith("_") for part in p.relative_to(package).parts)}
+    documented = set()
+    for page in (DOCS / "api").glob("*.md"):
+        documented |= set(re.findall(r"^::: ([\w.]+)$", page.read_text(), re.M))
+    missing = sorted(modules - documented - set(NOT_IN_API))
+    assert not missing, f"public modules with no '::: module' line in docs/api/*.md: {missing}"
+    gone = sorted(name for name in documented if not any(name == m or name.startswith(m + ".") for m in modules))
+    assert not gone, f"docs/api/*.md documents modules that do not exist: {gone}"
