@@ -407,7 +407,7 @@ def test_targets_near_a_blocked_attempt_are_not_offered_again():
     env.reset(seed=0)
     core = env.unwrapped
     first = next(t for t in core.targets if t is not None)
-    slots = candidate_slots(core._expected, core.slam.paths[core.slam.best], core._navigation.costs, 6, 2,
+    slots = candidate_slots(core._expected, core.slam.paths[core.slam.best], core.action_type.navigation.costs, 6, 2,
                             blocked=[(first.x, first.y)])
     assert all(t is None or np.hypot(t.x - first.x, t.y - first.y) > BLOCKED_RADIUS for t in slots)
     assert sum(t is not None for t in slots) >= 1
@@ -425,10 +425,10 @@ def test_targets_are_offered_again_when_every_one_lies_by_a_blocked_attempt():
     for _ in range(30):
         offered = [t for t in core.targets if t is not None]
         assert offered and core.action_masks().sum() == len(offered)
-        if core._blocked and all(min(np.hypot(t.x - x, t.y - y) for x, y in core._blocked) <= BLOCKED_RADIUS
+        if core.action_type.blocked and all(min(np.hypot(t.x - x, t.y - y) for x, y in core.action_type.blocked) <= BLOCKED_RADIUS
                                  for t in offered):
             break
-        core._blocked.extend((t.x, t.y) for t in offered)
+        core.action_type.blocked.extend((t.x, t.y) for t in offered)
         core._stale = True
         core._refresh()
     else:
@@ -440,21 +440,21 @@ def test_with_no_target_left_the_robot_turns_in_place_and_the_filter_sees_it():
     filter updates on the turns, which cleared the ghost walls that shut the robot in for good in
     2 of 100 random-action episodes of Explore-v0); an empty slot picked while targets are left
     still stands still, so turning (which raises EMMI) is not an action an agent can choose."""
-    from emmi_gym.env.emmi_env import STAY_STEPS
+    from emmi_gym.env.actions import STAY_STEPS
 
     env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
     env.reset(seed=0)
     core = env.unwrapped
     n = core.config.n_actions
-    target = next(t for t in core._slots if t is not None)
-    core._slots = [target] + [None] * (n - 1)
+    target = next(t for t in core.action_type.slots if t is not None)
+    core.action_type.slots = [target] + [None] * (n - 1)
     pose, updates, steps = core.sim.true_pose.copy(), core.slam.step, core.sim_steps
     _, _, _, _, info = env.step(1)
     assert info["target_kind"] == "none" and core.sim_steps == steps + STAY_STEPS
     moved = core.sim.true_pose - pose  # the robot coasts to a stop from reset's drive
     assert np.hypot(*moved[:2]) < 0.05 and abs(moved[2]) < 0.01 and core.slam.step == updates
 
-    core._slots = [None] * n
+    core.action_type.slots = [None] * n
     _, _, _, _, info = env.step(0)
     assert info["target_kind"] == "none" and core.sim_steps == steps + 2 * STAY_STEPS
     turned = STAY_STEPS * core.robot_config.control_period * core.robot_config.max_turn_rate
@@ -599,7 +599,7 @@ def test_loop_closing_target_is_reached_without_pushing_into_walls():
     slot = next(k for k, t in enumerate(core.targets) if t is not None and np.hypot(t.x - start.x, t.y - start.y) < 1)
     _, _, _, _, info = env.step(slot)
     assert np.hypot(*(core.estimated_pose[:2] - start.xy)) < 0.5
-    assert info["collisions"] <= 5 and core._blocked == []
+    assert info["collisions"] <= 5 and core.action_type.blocked == []
 
 
 # ------------------------------------------------------------------ bounded work on bad input

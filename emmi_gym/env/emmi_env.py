@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 
-from .. import certainty
 from ..geometry.grid import GridGeometry
 from ..navigation.candidates import Target
-from ..navigation.executor import Limits, MacroActionExecutor
 from ..navigation.follower import WaypointFollower
 from ..scoring.oracle import OracleMap
 from ..scoring.scores import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
@@ -17,35 +14,26 @@ from ..slam import RBPF
 from ..slam.occupancy import ParticleMaps
 from ..world import RobotConfig, Simulator, rasterise
 from ..world.map_sets import WorldSource
-from . import observation as obs
+from .actions import ActionType, action_factory
 from .config import REWARDS, EnvConfig, make_config
+from .observation import ObservationType, observation_factory
 from .rendering import HumanWindow, render_frame
 from .rewards import Snapshot, reward_components, total_reward
 
-#: Discrete velocity actions: (v, omega) as fractions of the robot's limits.
-DISCRETE_VELOCITIES = ((0.0, 0.0), (1.0, 0.0), (0.3, 1.0), (0.3, -1.0), (-0.5, 0.0))
-#: Simulator steps (15 s) an invalid (masked) waypoint action stands still for: doing nothing
-#: through the default 60 decisions costs 9000 steps of time, about what it costs in velocity mode.
-STAY_STEPS = 150
 #: Simulator steps (60 s) added to the time a route takes at full speed, in the bound on driving it.
 ROUTE_SLACK_STEPS = 600
-
 
 
 class EmmiEnv(gym.Env):
     """Active SLAM: a robot in a pymunk world maps it with an RBPF; observation = the expected map.
 
-    See :class:`~emmi_gym.env.config.EnvConfig` for every option. In waypoint mode an
-    action picks one of ``n_frontiers + n_revisits`` candidate targets (use
-    :meth:`action_masks` with sb3-contrib's MaskablePPO); the robot plans a path on
-    the expected map and follows it with its estimated pose until it arrives, is
-    blocked (a target whose attempt ended blocked is not offered again this episode), or
-    ``macro_timeout`` simulator steps pass. An invalid (empty, masked)
-    slot makes it stand still for 150 simulator steps (15 s), which costs time; so does a target it
-    cannot set off for. With no target left at all (the masks keep slot 0 valid then) it turns in
-    place for those 15 s instead, as move_base's rotate recovery. In velocity
-    mode an action is (v, omega) in [-1, 1] scaled to the robot's limits (or one of
-    five discrete commands: stop, forward, left, right, back), one simulator step.
+    See :class:`~emmi_gym.env.config.EnvConfig` for every option. What an action is and how it is
+    carried out is the action type's (:mod:`emmi_gym.env.actions`, ``action_type``, picked by
+    ``action_mode`` and ``velocity_actions``): in waypoint mode an action picks one of
+    ``n_frontiers + n_revisits`` candidate targets (use :meth:`action_masks` with sb3-contrib's
+    MaskablePPO) and the robot drives there; in velocity mode it is a velocity command for one
+    simulator step. What the agent observes is the observation type's
+    (:mod:`emmi_gym.env.observation`, ``observation_type``, picked by ``observation``).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -73,19 +61,14 @@ class EmmiEnv(gym.Env):
         if fixed is not None:  # refuse maps too large now, not at the first reset
             grid = GridGeometry.covering(*fixed.bounds, cfg.resolution)
             ParticleMaps.check_memory(grid.rows, grid.cols, cfg.particles, cfg.resolution)
-        if cfg.action_mode == "waypoint":
-            self.action_space = spaces.Discrete(cfg.n_actions)
-        elif cfg.velocity_actions == "continuous":
-            self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        else:
-            self.action_space = spaces.Discrete(len(DISCRETE_VELOCITIES))
-        self.observation_space = obs.observation_space(
-            cfg.obs_size, cfg.observation, cfg.n_actions if cfg.action_mode == "waypoint" else 0)
+        self.action_type: ActionType = action_factory(self, cfg)
+        self.action_space = self.action_type.space()
+        self.observation_type: ObservationType = observation_factory(self, cfg)
+        self.observation_space = self.observation_type.space()
         self.world = None
         self.sim: Simulator | None = None
         self.slam: RBPF | None = None
         self._stale = True  # the filter updated since the expected map and its products were computed
-        self._pooling = obs.MapPooling()
         self._window: HumanWindow | None = None
 
     # ------------------------------------------------------------------ episode
@@ -105,11 +88,11 @@ class EmmiEnv(gym.Env):
         self.slam = RBPF(self.slam_config, max_range=self.laser_config.max_range, geometry=self.geometry)
         self.slam.reset(self.sim.odometry_pose, rng)
         self._oracle = OracleMap(self.slam)
-        self.sim_steps = self.collisions = self.decisions = 0
+        self.sim_steps = self.collisions = 0
+        self.action_type.reset()
         self._true_at_updates = np.empty((64, 3))  # the true pose at each filter update, the first _n_true rows
         self._n_true = 0
         self._true_path = [self.sim.true_pose]
-        self._blocked: list[tuple[float, float]] = []
         self._metrics = None
         self._new_updates: list[dict] = []
         self._feed(self.sim.odometry_pose, self.sim.true_pose)
@@ -120,7 +103,7 @@ class EmmiEnv(gym.Env):
         self.sim_steps = self.collisions = 0
         self._refresh()
         self._snapshot = self._take_snapshot()
-        return self._observation(), self._info({k: 0.0 for k in (*REWARDS, "time", "collision")})
+        return self.observation_type.observe(), self._info({k: 0.0 for k in (*REWARDS, "time", "collision")})
 
     def _drive_route(self, world, name: str) -> None:
         """Drive a route of the world with the true pose (the filter running), within a bound of time:
@@ -144,9 +127,7 @@ class EmmiEnv(gym.Env):
         self.world = world
         self.sim = Simulator(world, self.robot_config, self.laser_config, self.odometry_config)
         self.geometry = GridGeometry.covering(*world.bounds, self.config.resolution)
-        limits = Limits(self.robot_config.radius, self.robot_config.max_speed, self.robot_config.max_turn_rate,
-                        self._angles, self.laser_config.max_range)
-        self._navigation = MacroActionExecutor(self.geometry, limits, self.config.macro_timeout)
+        self.action_type.set_world()
         self.truth = rasterise(world, self.config.resolution, self.geometry)
         self._reachable = self.truth.reachable
         self._n_reachable = max(1, int(self._reachable.sum()))
@@ -155,13 +136,7 @@ class EmmiEnv(gym.Env):
         if self.slam is None:
             raise RuntimeError("call reset() before step()")
         steps0, collisions0 = self.sim_steps, self.collisions
-        target_kind = None
-        if self.config.action_mode == "waypoint":
-            target_kind = self._macro_step(int(action))
-            self.decisions += 1
-        else:
-            v, omega = self._velocity(action)
-            self._sim_step(v, omega)
+        acted = self.action_type.act(action)
         self._refresh()
         after = self._take_snapshot()
         components = reward_components(self._snapshot, after, self.sim_steps - steps0,
@@ -169,47 +144,13 @@ class EmmiEnv(gym.Env):
         self._snapshot = after
         reward = total_reward(components, self.config)
         terminated = after.coverage >= self.config.coverage_target
-        truncated = (self.sim_steps >= self.config.max_sim_steps or
-                     (self.config.action_mode == "waypoint" and self.decisions >= self.config.max_decisions))
-        observation, info = self._observation(), self._info(components)
+        truncated = self.sim_steps >= self.config.max_sim_steps or self.action_type.truncated()
+        observation, info = self.observation_type.observe(), self._info(components)
         info["sim_steps_this_step"] = self.sim_steps - steps0
-        if target_kind is not None:
-            info["target_kind"] = target_kind
+        info.update(acted)
         if self.render_mode == "human":
             self.render()
         return observation, reward, bool(terminated), bool(truncated and not terminated), info
-
-    def _velocity(self, action) -> tuple[float, float]:
-        limits = (self.robot_config.max_speed, self.robot_config.max_turn_rate)
-        if self.config.velocity_actions == "discrete":
-            fv, fw = DISCRETE_VELOCITIES[int(action)]
-        else:
-            fv, fw = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-        return float(fv) * limits[0], float(fw) * limits[1]
-
-    def _macro_step(self, action: int) -> str:
-        """Go to the target of slot ``action``; the kind of target it was ("frontier", "revisit", or
-        "none" for an empty slot)."""
-        if not 0 <= action < self.config.n_actions:
-            raise ValueError(f"action {action} is outside Discrete({self.config.n_actions})")
-        target: Target | None = self._slots[action]
-        outcome = self._navigation.follow(_EnvRobot(self), target) if target is not None else "stayed"
-        if outcome == "blocked" or (outcome == "stayed" and target is not None):  # never offer it again
-            self._blocked.append((target.x, target.y))
-            self._stale = True
-        if outcome == "stayed":  # an empty slot, or a target the robot cannot leave for
-            omega = self._recovery_turn_rate()
-            for _ in range(STAY_STEPS):
-                self._sim_step(0.0, omega)
-        return "none" if target is None else target.kind
-
-    def _recovery_turn_rate(self) -> float:
-        """How fast the robot turns while it stays: in place at full rate when no slot holds a target
-        (move_base's rotate recovery: the scans of the turns update the filter, which can clear a wall
-        the particles dispute that shut the robot in; standing still never updates it), else not at
-        all. So an agent that picks an empty slot while targets are left gains nothing by it (a turn
-        in place re-scans the same cells, which raises EMMI, docs/environments.md)."""
-        return self.robot_config.max_turn_rate if all(slot is None for slot in self._slots) else 0.0
 
     def _scan_now(self) -> np.ndarray:
         """The laser scan at the current simulator time, cast once and shared by the safety layer and the filter."""
@@ -252,9 +193,7 @@ class EmmiEnv(gym.Env):
         if not self._stale:
             return
         self._stale = False
-        self._stale_map_image = True
         self._metrics = self.slam.measure()
-        self._certainty = obs.certainty_vector(self._metrics.emmi, self._metrics.pose_entropy)
         self._expected = self.slam.expected_map().copy()  # as of this refresh (the filter's own changes)
         # each map labelled once (unobserved, free, occupied), for coverage and every score
         mine, seen = map_labels(self._expected), self._oracle.labels()
@@ -266,28 +205,23 @@ class EmmiEnv(gym.Env):
         self._oracle_accuracy, self._wall_consistency = oracle_scores_of_labels(mine, seen, self.geometry.resolution)
         self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], self._true_at_updates[:self._n_true],
                                               align=False)
-        if self.config.action_mode == "waypoint":
-            self._slots = self._navigation.targets(_EnvRobot(self), self._expected, self.slam.paths[self.slam.best],
-                                                   self.config.n_frontiers, self.config.n_revisits, self._blocked)
-            self._loop_spreads = [certainty.loop_displacement_spread(self.slam.paths, self.slam.log_weights,
-                                                                     t.path_index, log_weights=True)
-                                  if t is not None and t.kind == "revisit" else 0.0 for t in self._slots]
+        self.action_type.refresh()
+        self.observation_type.refresh()
 
     def _take_snapshot(self) -> Snapshot:
         m = self._metrics
         return Snapshot(m.emmi, m.pose_entropy, m.joint_entropy, self._coverage)
 
     def action_masks(self) -> np.ndarray:
-        """Which actions are valid now (for sb3-contrib's MaskablePPO): the non-empty target slots.
+        """Which actions are valid now (for sb3-contrib's MaskablePPO): in waypoint mode the non-empty
+        target slots, never all False (with no target at all, slot 0, turning in place, stays valid);
+        else all."""
+        return self.action_type.action_masks()
 
-        Never all False: with no target at all, slot 0 (turning in place) stays valid.
-        """
-        if self.config.action_mode != "waypoint":
-            return np.ones(getattr(self.action_space, "n", 1), dtype=bool)
-        mask = np.array([slot is not None for slot in self._slots], dtype=bool)
-        if not mask.any():
-            mask[0] = True
-        return mask
+    @property
+    def decisions(self) -> int:
+        """Waypoint decisions taken this episode (0 in velocity mode)."""
+        return self.action_type.decisions
 
     @property
     def estimated_pose(self) -> np.ndarray:
@@ -306,8 +240,8 @@ class EmmiEnv(gym.Env):
 
     @property
     def targets(self) -> list[Target | None]:
-        """The candidate target of each action slot (None: empty), in the map frame."""
-        return list(self._slots)
+        """The candidate target of each action slot (None: empty), in the map frame; [] in velocity mode."""
+        return self.action_type.targets
 
     @property
     def oracle_map(self) -> np.ndarray:
@@ -319,28 +253,11 @@ class EmmiEnv(gym.Env):
     def loop_spreads(self) -> list[float]:
         """For each action slot, the loop spread (m) of its revisit target: how much the particles disagree
         about the robot's position relative to the place it revisits
-        (:func:`~emmi_gym.certainty.loop_displacement_spread`); 0 for frontiers and empty slots."""
-        return list(self._loop_spreads)
+        (:func:`~emmi_gym.certainty.loop_displacement_spread`); 0 for frontiers and empty slots; [] in velocity
+        mode."""
+        return self.action_type.loop_spreads
 
-    # ------------------------------------------------------------------ observation, info, rendering
-
-    def _observation(self):
-        pose = self.slam.pose_estimate(self.sim.odometry_pose)
-        cfg = self.config
-        window = obs.view_window(self.world.bounds, pose, cfg.obs_size, cfg.egocentric, cfg.egocentric_extent)
-        if cfg.egocentric or self._stale_map_image:  # the map and the path change only at filter updates
-            map_channel = self._pooling(self._expected, self.geometry, window, cfg.obs_size)
-            self._map_image = obs.map_and_path(map_channel, self.slam.paths[self.slam.best], window, cfg.obs_size)
-            self._stale_map_image = False
-        image = obs.with_robot(self._map_image, pose, window, cfg.obs_size)
-        if cfg.observation == "image":
-            return image
-        observation = {"map": image, "pose": obs.pose_vector(pose, self.world.bounds),
-                       "certainty": self._certainty.copy()}
-        if cfg.action_mode == "waypoint":
-            observation["targets"] = obs.target_features(self._slots, self._loop_spreads, pose, self.world.bounds,
-                                                         self.geometry.resolution)
-        return observation
+    # ------------------------------------------------------------------ info, rendering
 
     def _info(self, components: dict) -> dict:
         m = self._metrics
@@ -377,29 +294,3 @@ class EmmiEnv(gym.Env):
         if self._window is not None:
             self._window.close()
             self._window = None
-
-
-class _EnvRobot:
-    """The env as the :class:`~emmi_gym.navigation.executor.Robot` a macro-action drives."""
-
-    def __init__(self, env: EmmiEnv):
-        self.env = env
-
-    @property
-    def filter_step(self) -> int:
-        return self.env.slam.step
-
-    def pose_estimate(self) -> np.ndarray:
-        return self.env.slam.pose_estimate(self.env.sim.odometry_pose)
-
-    def scan(self) -> np.ndarray:
-        return self.env._scan_now()
-
-    def expected_map(self) -> np.ndarray:
-        return self.env.slam.expected_map()
-
-    def step(self, v: float, omega: float) -> bool:
-        return self.env._sim_step(v, omega)
-
-    def out_of_time(self) -> bool:
-        return self.env.sim_steps >= self.env.config.max_sim_steps

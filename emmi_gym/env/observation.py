@@ -1,8 +1,15 @@
-"""Observations: the expected map as an image with the estimated pose, for SB3's MultiInputPolicy / CnnPolicy."""
+"""Observations: the expected map as an image with the estimated pose, for SB3's MultiInputPolicy / CnnPolicy.
+
+Each observation type gives the observation space (:meth:`ObservationType.space`) and the
+observation now (:meth:`ObservationType.observe`); :func:`observation_factory` picks the type
+the option ``observation`` names: ``"dict"`` (:class:`DictObservation`) or ``"image"``
+(:class:`ImageObservation`). The functions below draw their parts.
+"""
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numba as nb
 import numpy as np
@@ -10,6 +17,10 @@ from gymnasium import spaces
 
 from ..geometry.grid import GridGeometry
 from ..navigation.planner import FREE_P, OCCUPIED_P
+from .actions import by_name
+
+if TYPE_CHECKING:
+    from .emmi_env import EmmiEnv
 
 UNKNOWN_PIXEL = 127
 PATH_PIXEL = 128
@@ -20,20 +31,110 @@ LOOP_SPREAD_RANGE = 0.5  # m: a revisit's loop displacement spread / 0.5 m, clip
 TARGET_FEATURES = ("valid", "revisit", "dx", "dy", "travel_cost", "frontier_length", "loop_strength", "loop_spread")
 
 
-def observation_space(obs_size: int, kind: str, n_slots: int = 0) -> spaces.Space:
-    """The image alone (``kind='image'``) or the Dict: map, pose, certainty and, with ``n_slots`` target
-    slots (waypoint mode), one row of :data:`TARGET_FEATURES` per slot."""
-    image = spaces.Box(0, 255, (2, obs_size, obs_size), dtype=np.uint8)
-    if kind == "image":
-        return image
-    parts = {
-        "map": image,
-        "pose": spaces.Box(-1.0, 1.0, (4,), dtype=np.float32),
-        "certainty": spaces.Box(-1.0, 1.0, (2,), dtype=np.float32),
-    }
-    if n_slots:
-        parts["targets"] = spaces.Box(-1.0, 1.0, (n_slots, len(TARGET_FEATURES)), dtype=np.float32)
-    return spaces.Dict(parts)
+class ObservationType:
+    """What an observation is (:meth:`space`) and how the environment makes it (:meth:`observe`).
+
+    The environment calls :meth:`refresh` whenever the filter updated (after the expected map and
+    its measures were recomputed) and :meth:`observe` at every reset and step.
+    """
+
+    def __init__(self, env: EmmiEnv):
+        self.env = env
+
+    def space(self) -> spaces.Space:
+        """The observation space."""
+        raise NotImplementedError
+
+    def observe(self):
+        """The observation now."""
+        raise NotImplementedError
+
+    def refresh(self) -> None:
+        """The filter updated: what depends on the expected map is out of date."""
+
+
+class ImageObservation(ObservationType):
+    """``Box(0, 255, (2, obs_size, obs_size), uint8)``, for CnnPolicy: channel 0 the expected map
+    pooled to pixels (0 free, 255 occupied, 127 unknown; :class:`MapPooling`), channel 1 the
+    estimated path (128) and the robot with its heading (255); north up. The whole world, or with
+    ``egocentric`` a square of ``egocentric_extent`` metres round the estimated pose
+    (:func:`view_window`). The map and the path are drawn again only when the filter updated (or
+    at every step when egocentric), the robot at every step (:func:`map_and_path`,
+    :func:`with_robot`)."""
+
+    def __init__(self, env: EmmiEnv):
+        super().__init__(env)
+        self._pooling = MapPooling()
+        self._map_image: np.ndarray | None = None
+        self._stale = True  # the filter updated since the map and path were drawn
+
+    def space(self) -> spaces.Box:
+        size = self.env.config.obs_size
+        return spaces.Box(0, 255, (2, size, size), dtype=np.uint8)
+
+    def refresh(self) -> None:
+        self._stale = True
+
+    def image(self, pose) -> np.ndarray:
+        """The image with the robot at ``pose`` (the estimated pose now)."""
+        env, cfg = self.env, self.env.config
+        window = view_window(env.world.bounds, pose, cfg.obs_size, cfg.egocentric, cfg.egocentric_extent)
+        if cfg.egocentric or self._stale:  # the map and the path change only at filter updates
+            map_channel = self._pooling(env._expected, env.geometry, window, cfg.obs_size)
+            self._map_image = map_and_path(map_channel, env.slam.paths[env.slam.best], window, cfg.obs_size)
+            self._stale = False
+        return with_robot(self._map_image, pose, window, cfg.obs_size)
+
+    def observe(self) -> np.ndarray:
+        return self.image(self.env.estimated_pose)
+
+
+class DictObservation(ImageObservation):
+    """``Dict``, for MultiInputPolicy: ``map``, the :class:`ImageObservation`; ``pose``, (x, y)
+    scaled to [-1, 1] over the world's bounds and (cos, sin) of the heading (:func:`pose_vector`);
+    ``certainty``, (EMMI in bits/cell, pose entropy / 20 nats) (:func:`certainty_vector`); and,
+    when the action type has target slots (waypoint actions), ``targets``: one row of
+    :data:`TARGET_FEATURES` per slot (:func:`target_features`)."""
+
+    def __init__(self, env: EmmiEnv):
+        super().__init__(env)
+        self._certainty = np.zeros(2, dtype=np.float32)
+
+    def space(self) -> spaces.Dict:
+        parts = {
+            "map": super().space(),
+            "pose": spaces.Box(-1.0, 1.0, (4,), dtype=np.float32),
+            "certainty": spaces.Box(-1.0, 1.0, (2,), dtype=np.float32),
+        }
+        n_slots = self.env.action_type.n_slots
+        if n_slots:
+            parts["targets"] = spaces.Box(-1.0, 1.0, (n_slots, len(TARGET_FEATURES)), dtype=np.float32)
+        return spaces.Dict(parts)
+
+    def refresh(self) -> None:
+        super().refresh()
+        metrics = self.env._metrics
+        self._certainty = certainty_vector(metrics.emmi, metrics.pose_entropy)
+
+    def observe(self) -> dict:
+        env = self.env
+        pose = env.estimated_pose
+        observation = {"map": self.image(pose), "pose": pose_vector(pose, env.world.bounds),
+                       "certainty": self._certainty.copy()}
+        actions = env.action_type
+        if actions.n_slots:
+            observation["targets"] = target_features(actions.targets, actions.loop_spreads, pose, env.world.bounds,
+                                                     env.geometry.resolution)
+        return observation
+
+
+#: The observation types by the option ``observation``.
+OBSERVATION_TYPES: dict[str, type[ObservationType]] = {"dict": DictObservation, "image": ImageObservation}
+
+
+def observation_factory(env: EmmiEnv, config) -> ObservationType:
+    """The observation type the option ``observation`` of ``config`` names, for ``env``."""
+    return by_name(OBSERVATION_TYPES, "observation", config.observation)(env)
 
 
 def view_window(bounds, pose, size: int, egocentric: bool, extent: float) -> tuple[float, float, float]:

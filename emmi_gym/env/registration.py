@@ -9,8 +9,7 @@ ENTRY_POINT = "emmi_gym.env.emmi_env:EmmiEnv"
 #: id (without namespace) -> default options
 ENV_IDS = {
     # the paper's experiment with a laser of its era (a SICK LMS200, 180 degrees, at 8 m) and poor odometry: the
-    # particles then disagree about the loop until it closes, so closing it first is worth learning (with a
-    # 360-degree laser and typical odometry the matcher kept them within a decimetre or two; docs/ab.md)
+    # particles then disagree about the loop until it closes, so closing it first is worth learning
     "LoopCorridor-v0": dict(world="loop_corridor", start_at="decision", action_mode="waypoint",
                             laser={"preset": "sick_lms200", "max_range": 8.0}, odometry_noise="poor"),
     "Explore-v0": dict(world=None, start_at="start", action_mode="waypoint"),

@@ -12,16 +12,11 @@ Each variant (see :data:`~emmi_gym.env.config.REWARD_SCALES` for the scales and 
   observed cells only.
 
 EMMI is a *mean* over the observed cells: re-scanning the same cells raises it as each
-cell's log-odds approach the clamp. ``scripts/reward_farming.py`` measures what each variant
-pays (time and collision costs included, 3 plans of the hard configuration, 300 steps in
-velocity mode): standing still -0.60 under every variant; spinning in place +6.14 under
-``emmi`` and +2.96 under ``joint_entropy`` (farmed: per unit of time 20 and 0.8 times what
-the frontier policy earns in 40 decisions, +1.92 and +23.7 over ~1900 steps), -1.16 under
-``pose_entropy``, -0.09 under ``coverage`` and +0.04 under ``emmi_coverage``. Weighted by
-coverage, a rise of EMMI pays in proportion to how much of the building the map holds:
-re-scanning a corner is worth little, closing a loop when the map is large much; spinning
-earns +0.01 per 100 simulator steps under ``emmi_coverage``, the frontier policy +0.05
-(under ``emmi``: +2.05 and +0.10).
+cell's log-odds approach the clamp, so spinning in place pays under ``emmi`` (and under
+``joint_entropy``). Weighted by coverage (``emmi_coverage``), a rise of EMMI pays in proportion
+to how much of the building the map holds: re-scanning a corner is worth little, closing a loop
+when the map is large much. ``scripts/reward_farming.py`` measures what each variant pays for
+standing still, spinning in place and exploring.
 """
 
 from __future__ import annotations
