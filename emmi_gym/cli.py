@@ -164,16 +164,70 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     set_torch_threads(args.torch_threads)
     if args.episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
-    if not Path(args.model).is_file():
-        raise FileNotFoundError(f"no model at {args.model}")
-    config = load_run_config(args.model)  # loaded once: checking it makes the env
+    model, name = _model_to_evaluate(args)
+    config = load_run_config(model)  # loaded once: checking it makes the env
+    if args.world is not None or args.baselines:
+        return _evaluate_beside_baselines(args, model, name, config)
     print(f"evaluating on {config.env_id} ({config.eval_env_kwargs}), episodes seeded from {args.seed}")
-    rows = evaluate_model(args.model, args.episodes, args.seed, args.video, config=config)
+    rows = evaluate_model(model, args.episodes, args.seed, args.video, config=config)
     print(format_table(rows))
     print("\nmean over episodes:")
     print(format_table([summarise(rows)]))
     if args.video:
         print(f"videos in {args.video}")
+    return 0
+
+
+def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
+    """The model file that ``evaluate`` plays, and the name its rows carry."""
+    if (args.model is None) == (args.pretrained is None):
+        raise ValueError("give a model .zip or --pretrained NAME (one of them)")
+    if args.pretrained is not None:
+        from . import pretrained
+
+        return pretrained.model_path(args.pretrained), args.pretrained
+    if not Path(args.model).is_file():
+        raise FileNotFoundError(f"no model at {args.model}")
+    return Path(args.model), "agent"
+
+
+def _output_folder(path) -> Path:
+    """``path`` made now, before any work, so that a folder that cannot be written fails first."""
+    out = Path(path)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:
+    from .experiments.comparison import markdown_table
+    from .experiments.report import write_csv
+    from .policies import POLICY_NAMES
+    from .training.episodes import summarise
+    from .training.evaluate import OWN_WORLD, compare_model, format_table
+
+    if args.video:
+        raise ValueError("--video records the model alone: leave out --world and --baselines")
+    unknown = sorted(set(args.baselines) - set(POLICY_NAMES))
+    if unknown:
+        raise ValueError(f"--baselines: unknown {unknown}; choose from {list(POLICY_NAMES)}")
+    world = OWN_WORLD if args.world is None else args.world
+    out = None if args.out is None else _output_folder(args.out)
+    print(f"evaluating {name} on {config.env_id} ({config.eval_env_kwargs}"
+          f"{'' if args.world is None else f', world {args.world}'}) beside {args.baselines or 'no baseline'}: "
+          f"{args.episodes} episodes, seeds from {args.seed}")
+    rows = compare_model(model, name, world, args.episodes, args.seed, args.baselines, workers=args.workers,
+                         progress=not args.quiet)
+    policies = [name, *args.baselines]
+    means = [{"policy": p, **summarise([{k: v for k, v in r.items() if isinstance(v, float)}
+                                        for r in rows if r["policy"] == p])} for p in policies]
+    print(format_table(means))
+    tables = [markdown_table(rows, name, baseline, f"{name} - {baseline}") for baseline in args.baselines]
+    for table in tables:
+        print("\n" + table)
+    if out is not None:
+        write_csv(out / "episodes.csv", rows)
+        (out / "summary.md").write_text("\n\n".join([format_table(means), *tables]) + "\n")
+        print(f"\nwrote {out / 'episodes.csv'} and {out / 'summary.md'}")
     return 0
 
 
@@ -250,10 +304,24 @@ def build_parser() -> argparse.ArgumentParser:
                               "run in this process")
     tr.set_defaults(func=_cmd_train)
 
-    ev = sub.add_parser("evaluate", help="run a trained model on held-out episodes: return and ground-truth metrics")
-    ev.add_argument("model", help="model .zip written by 'emmi-gym train' (config.yaml beside it)")
+    ev = sub.add_parser("evaluate", help="run a trained model on held-out episodes: return and ground-truth "
+                                         "metrics, beside the scripted baselines on the same episodes if asked")
+    ev.add_argument("model", nargs="?", default=None,
+                    help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
+    ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
     ev.add_argument("--episodes", type=int, default=10)
     ev.add_argument("--seed", type=int, default=200_000, help="first episode seed (default 200000: held out)")
+    ev.add_argument("--world", default=None,
+                    help="a world, map set, folder or glob to play on (a set's first maps, one episode each; "
+                         "default: the run's evaluation env)")
+    ev.add_argument("--baselines", nargs="*", default=[], metavar="POLICY",
+                    help="scripted policies played on the same episodes, paired with the model, with 95%% "
+                         "intervals (e.g. frontier active_loop_closing)")
+    ev.add_argument("--workers", type=int, default=None, help="worker processes with --world or --baselines "
+                                                                "(default one per core)")
+    ev.add_argument("--out", default=None, metavar="DIR",
+                    help="with --world or --baselines: write episodes.csv and summary.md here")
+    ev.add_argument("--quiet", action="store_true", help="no progress bar")
     ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
     _torch_threads_option(ev, "1: the env's kernels need the cores")
     ev.set_defaults(func=_cmd_evaluate)

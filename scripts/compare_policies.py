@@ -12,14 +12,14 @@ OUT/episodes.csv and OUT/maps.png (one world's maps side by side).
 from __future__ import annotations
 
 import argparse
-import csv
 from pathlib import Path
 
 import gymnasium as gym
 from _options import checked, json_object
 
 from emmi_gym.env import ENV_IDS, EnvConfig
-from emmi_gym.experiments.comparison import SCORES, ComparisonSettings, compare, markdown_table, plot_pair, run_episode
+from emmi_gym.experiments.comparison import ComparisonSettings, compare, markdown_table, plot_pair, run_episode
+from emmi_gym.experiments.report import write_csv
 from emmi_gym.inputs.validation import build
 from emmi_gym.world.map_sets import map_set_files
 
@@ -48,10 +48,7 @@ def main() -> None:
     baseline, policy = args.policies
     rows = compare(worlds, args.seeds, [baseline, policy], settings, workers=args.workers)
     args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / "episodes.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, ["world", "plan", "seed", "policy", *SCORES])
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(args.out / "episodes.csv", rows)
     options = f" {settings.env_options}" if settings.env_options else ""
     title = f"{args.env}{options} on {len(worlds)} worlds x {len(args.seeds)} seeds"
     table = markdown_table(rows, policy, baseline, title)

@@ -1,102 +1,79 @@
-"""What each reward pays the scripted policies on LoopCorridor-v0, discounted per decision and per robot time.
+"""Reward alignment: which reward, time cost and discount pay more to the policy that maps better.
 
-Runs whole episodes of close_loop_first (the paper's A), explore_first (B) and frontier from
-the decision point, keeps every step's reward components and duration, and prints for each
-reward variant, time cost and discounting the mean discounted return of each policy and on
-how many seeds A earns more than the others. A learning agent comes to prefer what earns
-most here, so this is the check that a reward and discount make closing the loop first worth
-learning (see emmi_gym/training/semi_markov.py for why the discount follows robot time).
+Plays the scripted policies on the same (world, seed) episodes, keeps every step's reward components,
+and prints for each reward variant, time cost and discount each policy's mean return, on how many
+pairs of episodes the better final map also earned more, the within-episode correlation of return
+and final map quality, and the policy the reward prefers (emmi_gym/experiments/reward_alignment.py).
 
-    python scripts/reward_returns.py --seeds 12 --time-costs 0.002   # about 1 min on two cores
-    python scripts/reward_returns.py --seeds 12 --env-kwargs '{laser: default, odometry_noise: typical}'
+    python scripts/reward_returns.py --worlds dungeon_maps/train --plans 12 \\
+        --policies frontier active_loop_closing random --out results/alignment_train
+    python scripts/reward_returns.py --env emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 0 1 2 3 \\
+        --policies close_loop_first explore_first frontier --discounts none 0.95 0.9@100
 
-``--env-kwargs`` (a YAML mapping of ``gym.make`` keywords) asks the same of other settings of
-the corridor (the second line: the 360-degree laser and typical odometry it had before): which
-make the loop's closure worth going back for.
+``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
+every ``--seeds``) or worlds (names, files: one episode per seed). Choose on the train split; the
+test split is for reporting.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 
-import numpy as np
-import yaml
+import gymnasium as gym
+from _options import checked, json_object
 
-POLICIES = ("close_loop_first", "explore_first", "frontier")
-VARIANTS = ("emmi", "pose_entropy", "joint_entropy", "coverage")
-
-
-def episode_steps(job) -> tuple[str, int, list[dict]]:
-    """One episode of a scripted policy: each step's reward components and duration (simulator steps)."""
-    import gymnasium as gym
-
-    import emmi_gym  # noqa: F401  (registers the ids in a worker process)
-    from emmi_gym.policies import make_policy
-
-    policy_name, seed, env_kwargs = job
-    env = gym.make("emmi_gym/LoopCorridor-v0", **env_kwargs)
-    policy = make_policy(policy_name)
-    policy.reset(seed)
-    env.reset(seed=seed)
-    steps, done = [], False
-    while not done:
-        _, _, terminated, truncated, info = env.step(policy(env))
-        steps.append({**info["reward_components"], "duration": info["sim_steps_this_step"]})
-        done = terminated or truncated
-    env.close()
-    return policy_name, seed, steps
-
-
-def discounted_return(steps: list[dict], variant: str, time_cost: float, gamma: float, unit: int | None) -> float:
-    """Sum of the rewards discounted by ``gamma`` per decision (``unit`` None) or per ``unit`` simulator steps."""
-    total, elapsed = 0.0, 0
-    for k, step in enumerate(steps):
-        reward = step[variant] - time_cost * step["duration"] + step["collision"]
-        total += (gamma ** k if unit is None else gamma ** (elapsed / unit)) * reward
-        elapsed += step["duration"]
-    return total
+from emmi_gym.env import REWARDS, EnvConfig
+from emmi_gym.experiments.comparison import ComparisonSettings, compare_on
+from emmi_gym.experiments.reward_alignment import QUALITIES, Discount, alignment, markdown, policy_front
+from emmi_gym.inputs.validation import build
+from emmi_gym.policies import POLICY_NAMES
+from emmi_gym.world.map_sets import map_set_files
 
 
 def main() -> None:
-    from emmi_gym.concurrency.parallel import run_in_processes
-    from emmi_gym.env.config import EnvConfig
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=8)
-    parser.add_argument("--time-costs", type=float, nargs="+", default=[EnvConfig.time_cost, 0.0005])
+    parser.add_argument("--env", default="emmi_gym/ExplorePlans-v0")
+    parser.add_argument("--options", default="{}", help="JSON of further gym.make options")
+    parser.add_argument("--worlds", nargs="+", default=["dungeon_maps/train"])
+    parser.add_argument("--plans", type=int, default=12, help="maps taken from each map set")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--policies", nargs="+", default=["frontier", "active_loop_closing", "random"],
+                        choices=POLICY_NAMES)
+    parser.add_argument("--rewards", nargs="+", default=list(REWARDS), choices=REWARDS)
+    parser.add_argument("--time-costs", type=float, nargs="+", default=[0.0, EnvConfig.time_cost])
+    parser.add_argument("--discounts", nargs="+", default=["none", "0.9@100", "0.99@100"],
+                        help="'none', GAMMA (per decision) or GAMMA@STEPS (per STEPS simulator steps)")
     parser.add_argument("--workers", type=int, default=None)
-    parser.add_argument("--env-kwargs", type=yaml.safe_load, default={},
-                        help="gym.make keywords of LoopCorridor-v0, as a YAML mapping")
+    parser.add_argument("--out", type=Path, default=None, help="write summary.md and episodes.json here")
     args = parser.parse_args()
-    if not isinstance(args.env_kwargs, dict):
-        parser.error(f"--env-kwargs: expected a YAML mapping of gym.make keywords, got {args.env_kwargs!r}")
-    import gymnasium as gym
-
-    import emmi_gym  # noqa: F401  (registers the ids)
-
-    try:  # checked once here, before any worker starts (option errors are ValueErrors naming the field)
-        gym.make("emmi_gym/LoopCorridor-v0", **args.env_kwargs).close()
+    if args.env not in gym.registry:
+        parser.error(f"--env: no environment {args.env!r} is registered")
+    try:
+        discounts = [Discount.parse(text) for text in args.discounts]
     except ValueError as error:
-        parser.error(f"--env-kwargs: {error}")
-    jobs = [(policy, seed, args.env_kwargs) for seed in range(args.seeds) for policy in POLICIES]
-    episodes = {(p, s): steps for p, s, steps in run_in_processes(episode_steps, jobs, workers=args.workers,
-                                                                  desc="episodes")}
-    for policy in POLICIES:
-        lengths = [len(episodes[policy, s]) for s in range(args.seeds)]
-        durations = [sum(step["duration"] for step in episodes[policy, s]) for s in range(args.seeds)]
-        print(f"{policy:17s} decisions median {np.median(lengths):.0f}, "
-              f"simulator steps median {np.median(durations):.0f}")
-    discountings = [("per decision", 0.95, None), ("per 100 sim steps", 0.9, 100), ("per 100 sim steps", 0.95, 100)]
-    for variant in VARIANTS:
-        print(f"\nreward {variant}")
-        for time_cost in args.time_costs:
-            for label, gamma, unit in discountings:
-                returns = {p: np.array([discounted_return(episodes[p, s], variant, time_cost, gamma, unit)
-                                        for s in range(args.seeds)]) for p in POLICIES}
-                a, b, f = (returns[p] for p in POLICIES)
-                print(f"  time cost {time_cost:<7g} gamma {gamma} {label:18s} A {a.mean():+6.2f}  B {b.mean():+6.2f}  "
-                      f"frontier {f.mean():+6.2f}   A > B on {np.sum(a > b)}/{args.seeds}, "
-                      f"A > frontier on {np.sum(a > f)}/{args.seeds}")
+        parser.error(f"--discounts: {error}")
+    settings = ComparisonSettings(args.env, json_object(parser, "--options", args.options))
+    checked(parser, build, EnvConfig, {**gym.spec(args.env).kwargs, **settings.env_options}, "", source="--options")
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+
+    episodes = []
+    for name in args.worlds:
+        files = map_set_files(name)
+        worlds = [str(f) for f in files[:args.plans]] if files is not None else [name]
+        episodes += [(w, s) for w in worlds for s in args.seeds]
+    rows = compare_on(episodes, args.policies, settings, workers=args.workers, keep_steps=True)
+    results = alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES))
+    title = (f"Reward alignment on {args.env}{f' {settings.env_options}' if settings.env_options else ''}: "
+             f"{len(episodes)} episodes ({', '.join(args.worlds)}; seeds {args.seeds}) of {', '.join(args.policies)}")
+    table = markdown(results, policy_front(rows), title)
+    print(table)
+    if args.out is not None:
+        (args.out / "summary.md").write_text(table + "\n")
+        (args.out / "episodes.json").write_text(json.dumps(rows))
+        print(f"\nwrote {args.out / 'summary.md'} and {args.out / 'episodes.json'}")
 
 
 if __name__ == "__main__":

@@ -1,27 +1,49 @@
-"""Scripted policies compared on many worlds, paired by world and seed, under the ground-truth scores.
+"""Policies compared on many worlds, paired by world and seed, under the ground-truth scores.
 
-Each (world, seed) gives one episode per policy from the same start and the same random
-draws up to the first decision; the table reports each policy's mean and the paired
-difference with its 95% interval (Student's t, clipped to the measure's range), the scores
-being the final ``info`` of the episode: accuracy against the oracle map (1.0: SLAM added no
-error), wall consistency, ATE, map accuracy against the floor plan, coverage.
+A policy is a scripted one, by name (:func:`emmi_gym.policies.make_policy`), or a trained agent
+(:class:`TrainedAgent`, a model written by ``emmi-gym train``). Each (world, seed) gives one
+episode per policy from the same start and the same random draws up to the first decision; the
+table reports each policy's mean and the paired difference with its 95% interval (Student's t,
+clipped to the measure's range; Wilson for proportions), the scores being the final ``info`` of
+the episode: accuracy against the oracle map (1.0: SLAM added no error), wall consistency, ATE,
+map accuracy against the floor plan, coverage, whether and when the coverage target was
+reached, and the share of decisions that went back to close a loop.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import gymnasium as gym
 import numpy as np
 
 from ..concurrency.parallel import run_in_processes
 from ..policies import make_policy
+from ..training.episodes import ModelActor, PolicyActor
+from ..training.episodes import run_episode as run_actor_episode
+from ..training.loop_order import LOOP_ORDER_KEY, LoopOrderInfo
+from ..world.map_sets import map_set_files
 from .intervals import difference_interval, measure_interval
 
-#: The scores compared, with their labels; for "ate" lower is better.
+#: The scores compared, with their labels.
 SCORES = {"oracle_accuracy": "accuracy against the oracle map", "wall_consistency": "wall consistency",
           "ate": "ATE (m)", "map_accuracy": "map accuracy (floor plan)", "coverage": "coverage",
+          "reached_target": "coverage target reached", "sim_steps_to_target": "simulator steps to the target",
+          "revisit_share": "revisit share", LOOP_ORDER_KEY: "closed the loop first",
           "decisions": "decisions", "sim_steps": "simulator steps"}
+#: Scores where lower is better; the others count "better" when higher, except those of :data:`NO_BETTER`.
+LOWER_IS_BETTER = ("ate", "sim_steps_to_target")
+NO_BETTER = ("revisit_share", LOOP_ORDER_KEY, "decisions", "sim_steps")
+
+
+@dataclass(frozen=True)
+class TrainedAgent:
+    """A trained model to compare beside the scripted policies: the ``.zip`` that ``emmi-gym train``
+    wrote (its ``config.yaml`` beside it) and the name its rows carry."""
+
+    path: str
+    name: str = "agent"
 
 
 @dataclass(frozen=True)
@@ -31,24 +53,46 @@ class ComparisonSettings:
     env_id: str = "emmi_gym/ExplorePlans-v0"
     env_options: dict = field(default_factory=dict)
 
-    def make_env(self, world: str) -> gym.Env:
-        return gym.make(self.env_id, **dict(self.env_options, world=world))
+    def make_env(self, world) -> gym.Env:
+        return LoopOrderInfo(gym.make(self.env_id, **dict(self.env_options, world=world)))
 
 
-def run_episode(world: str, seed: int, policy_name: str, settings: ComparisonSettings = ComparisonSettings(),
-                keep_maps: bool = False) -> dict:
-    """One episode of ``policy_name`` on ``world`` with ``seed``: its final scores (and, with ``keep_maps``, the
-    expected map, the oracle map and the grid's extent)."""
+def policy_name(policy) -> str:
+    """The name a policy's rows carry: a scripted policy's own, a trained agent's ``name``."""
+    return policy.name if isinstance(policy, TrainedAgent) else policy
+
+
+@lru_cache(maxsize=4)
+def _load_model(path: str):
+    """A trained agent's model, loaded once per process, acting on one torch thread."""
+    import torch
+
+    from ..training.evaluate import load_model
+
+    torch.set_num_threads(1)
+    return load_model(path)[0]
+
+
+def make_actor(policy):
+    """What acts in :func:`emmi_gym.training.episodes.run_episode`: a fresh scripted policy, or the agent's model."""
+    if isinstance(policy, TrainedAgent):
+        return ModelActor(_load_model(policy.path))
+    return PolicyActor(make_policy(policy))
+
+
+def run_episode(world, seed: int, policy, settings: ComparisonSettings = ComparisonSettings(),
+                keep_maps: bool = False, keep_steps: bool = False) -> dict:
+    """One episode of ``policy`` (a scripted policy's name or a :class:`TrainedAgent`) on ``world`` with
+    ``seed``: its final scores (with ``keep_maps``, the expected map, the oracle map and the grid's
+    extent; with ``keep_steps``, every step's reward components, see
+    :func:`emmi_gym.training.episodes.run_episode`)."""
     env = settings.make_env(world)
     core = env.unwrapped
-    policy = make_policy(policy_name)
-    _, info = env.reset(seed=seed)
-    policy.reset(seed)
-    terminated = truncated = False
-    while not (terminated or truncated):
-        _, _, terminated, truncated, info = env.step(policy(env))
-    row = {"world": str(world), "plan": core.world.name, "seed": seed, "policy": policy_name,
-           "decisions": core.decisions, **{k: float(info[k]) for k in SCORES if k in info}}
+    scores = run_actor_episode(env, make_actor(policy), seed, keep_steps=keep_steps)
+    row = {"world": str(world), "plan": core.world.name, "seed": seed, "policy": policy_name(policy),
+           "decisions": core.decisions, "return": scores["return"], **{k: scores[k] for k in SCORES if k in scores}}
+    if keep_steps:
+        row["steps"] = scores["steps"]
     if keep_maps:
         row.update(expected_map=core.expected_map, oracle_map=core.oracle_map,
                    extent=core.geometry.extent, true_path=core.true_path)
@@ -57,40 +101,65 @@ def run_episode(world: str, seed: int, policy_name: str, settings: ComparisonSet
 
 
 def _run(job) -> dict:
-    return run_episode(*job)
+    world, seed, policy, settings, keep_steps = job
+    return run_episode(world, seed, policy, settings, keep_steps=keep_steps)
 
 
 def compare(worlds, seeds, policies, settings: ComparisonSettings = ComparisonSettings(), *,
             workers: int | None = None, progress: bool = True) -> list[dict]:
     """Every policy on every (world, seed), in ``workers`` processes; rows sorted by world, seed, policy."""
-    jobs = [(str(w), int(s), p, settings) for w in worlds for s in seeds for p in policies]
-    rows = run_in_processes(_run, jobs, workers=workers, desc="episodes", progress=progress)
-    order = {p: i for i, p in enumerate(policies)}
+    return compare_on([(w, s) for w in worlds for s in seeds], policies, settings, workers=workers,
+                      progress=progress)
+
+
+def compare_on(episodes, policies, settings: ComparisonSettings = ComparisonSettings(), *,
+               workers: int | None = None, progress: bool = True, keep_steps: bool = False) -> list[dict]:
+    """Every policy on each ``(world, seed)`` of ``episodes``, in ``workers`` processes; rows sorted by
+    world, seed, policy (with ``keep_steps``, each row's ``steps``: see :func:`run_episode`). Trained
+    agents run in spawned processes (torch and fork do not mix)."""
+    jobs = [(w if w is None else str(w), int(s), p, settings, keep_steps) for w, s in episodes for p in policies]
+    spawn = any(isinstance(p, TrainedAgent) for p in policies)
+    rows = run_in_processes(_run, jobs, workers=workers, desc="episodes", progress=progress,
+                            start_method="spawn" if spawn else None)
+    order = {policy_name(p): i for i, p in enumerate(policies)}
     return sorted(rows, key=lambda r: (r["world"], r["seed"], order[r["policy"]]))
+
+
+def episodes_on(world, episodes: int, first_seed: int) -> list[tuple]:
+    """``episodes`` (world, seed) pairs on ``world``: the first maps of a map set (a shipped set, a folder,
+    a glob), each with ``first_seed``, going round the set with the next seeds if it has fewer maps;
+    one world (a name, a file, ``None`` for a generated one) with the seeds from ``first_seed`` on."""
+    files = map_set_files(world) if isinstance(world, str) else None
+    if files is None:
+        return [(world, first_seed + k) for k in range(episodes)]
+    return [(str(files[k % len(files)]), first_seed + k // len(files)) for k in range(episodes)]
 
 
 def paired(rows: list[dict], column: str, policy: str, baseline: str) -> np.ndarray:
     """``policy``'s score minus ``baseline``'s on each (world, seed) where both ran."""
-    by_key = {(r["world"], r["seed"], r["policy"]): r[column] for r in rows}
+    by_key = {(r["world"], r["seed"], r["policy"]): r.get(column, np.nan) for r in rows}
     return np.array([by_key[(w, s, policy)] - value for (w, s, p), value in by_key.items()
                      if p == baseline and (w, s, policy) in by_key], dtype=np.float64)
 
 
 def markdown_table(rows: list[dict], policy: str, baseline: str, title: str) -> str:
-    """Mean [95% interval] of each score per policy and of the paired difference ``policy - baseline``."""
+    """Mean [95% interval] of each score per policy and of the paired difference ``policy - baseline``
+    (the scores that no row has are left out)."""
     pairs = len(paired(rows, "coverage", policy, baseline))
     lines = [f"{title}: {pairs} pairs (world, seed); mean [95% interval]; differences paired.", "",
              f"| score | {baseline} | {policy} | {policy} - {baseline} | {policy} better |",
              "| --- | --- | --- | --- | --- |"]
     for column, label in SCORES.items():
+        if not any(np.isfinite(r.get(column, np.nan)) for r in rows):
+            continue
         cells = []
         for name in (baseline, policy):
-            m, lo, hi, n = measure_interval([r[column] for r in rows if r["policy"] == name], column)
+            m, lo, hi, n = measure_interval([r.get(column, np.nan) for r in rows if r["policy"] == name], column)
             cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
         diff = paired(rows, column, policy, baseline)
         m, lo, hi, n = difference_interval(diff, column)
-        better = int(np.sum(diff < 0)) if column == "ate" else int(np.sum(diff > 0))
-        better_text = "" if column in ("decisions", "sim_steps") else f"{better}/{n}"
+        better = int(np.sum(diff < 0)) if column in LOWER_IS_BETTER else int(np.sum(diff > 0))
+        better_text = "" if column in NO_BETTER else f"{better}/{n}"
         lines.append(f"| {label} | {cells[0]} | {cells[1]} | {m:+.3f} [{lo:+.3f}, {hi:+.3f}] | {better_text} |")
     return "\n".join(lines)
 

@@ -197,15 +197,20 @@ class GoalSequencePolicy:
         return int(min(valid, key=lambda k: (self._distance_from(core, field, targets[k].xy), targets[k].travel_cost)))
 
 
+#: How each scripted policy is built, by name.
+_FACTORIES = {
+    "frontier": FrontierPolicy,
+    "active_loop_closing": ActiveLoopClosingPolicy,
+    "random": RandomPolicy,
+    "close_loop_first": lambda: GoalSequencePolicy("close_loop_first", ("target_a", "target_b")),
+    "explore_first": lambda: GoalSequencePolicy("explore_first", ("target_b", "target_a")),
+}
+#: The names :func:`make_policy` takes.
+POLICY_NAMES = tuple(_FACTORIES)
+
+
 def make_policy(name: str):
-    """A fresh policy by name: frontier, random, active_loop_closing, close_loop_first, explore_first."""
-    policies = {
-        "frontier": FrontierPolicy,
-        "active_loop_closing": ActiveLoopClosingPolicy,
-        "random": RandomPolicy,
-        "close_loop_first": lambda: GoalSequencePolicy("close_loop_first", ("target_a", "target_b")),
-        "explore_first": lambda: GoalSequencePolicy("explore_first", ("target_b", "target_a")),
-    }
-    if name not in policies:
-        raise ValueError(f"unknown policy {name!r}; choose one of {sorted(policies)}")
-    return policies[name]()
+    """A fresh policy by name: frontier, active_loop_closing, random, close_loop_first, explore_first."""
+    if name not in _FACTORIES:
+        raise ValueError(f"unknown policy {name!r}; choose one of {sorted(_FACTORIES)}")
+    return _FACTORIES[name]()

@@ -42,7 +42,7 @@ class PolicyActor:
         return self.policy(env)
 
 
-def run_episode(env, actor, seed: int) -> dict:
+def run_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
     """One episode with ``actor``; its return, steps and ground-truth measures (see :data:`GROUND_TRUTH`).
 
     ``sim_steps_to_target`` is the simulator steps until the coverage target (NaN if it was
@@ -51,22 +51,29 @@ def run_episode(env, actor, seed: int) -> dict:
     ``closed_loop_first`` is 1.0 if the robot went back to the loop's start before entering the
     new area, 0.0 if it entered the new area first, NaN if neither. ``revisit_share`` is the
     fraction of waypoint decisions that chose a revisit target (``info["target_kind"]``; NaN
-    in velocity mode): how much of its time the policy spent going back to close loops.
+    in velocity mode): how much of its time the policy spent going back to close loops. With
+    ``keep_steps``, ``steps`` lists each step's ``info["reward_components"]`` with its ``duration`` in
+    simulator steps (what any reward variant, time cost and discount would have paid).
     """
     observation, _ = env.reset(seed=seed)
     actor.reset(seed)
     total, steps, revisits, terminated, truncated = 0.0, 0, 0, False, False
+    kept = []
     while not (terminated or truncated):
         observation, reward, terminated, truncated, info = env.step(actor(env, observation))
         total += float(reward)
         steps += 1
         revisits += info.get("target_kind") == "revisit"
+        if keep_steps:
+            kept.append({**info["reward_components"], "duration": info["sim_steps_this_step"]})
     row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in GROUND_TRUTH},
            "reached_target": float(terminated),
            "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan,
            "revisit_share": revisits / steps if "target_kind" in info else math.nan}
     if LOOP_ORDER_KEY in info:
         row[LOOP_ORDER_KEY] = info[LOOP_ORDER_KEY]
+    if keep_steps:
+        row["steps"] = kept
     return row
 
 

@@ -9,6 +9,8 @@ from .config import algorithm_class
 from .episodes import ModelActor, run_episodes
 from .train import load_run_config, make_env
 
+#: ``world`` of :func:`compare_model` that means the run's evaluation env's own world.
+OWN_WORLD = object()
 #: Evaluation episodes are seeded from here on by default: apart from training (config seeds)
 #: and from the periodic evaluation during training (eval.seed).
 EVALUATION_SEED = 200_000
@@ -20,10 +22,7 @@ def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, 
     configuration (the training env with ``eval.env_kwargs``; ``config``: that configuration, if the
     caller has loaded it already)."""
     model_path = Path(model_path)
-    if not model_path.is_file():
-        raise FileNotFoundError(f"no model at {model_path}")
-    config = config or load_run_config(model_path)
-    model = algorithm_class(config.algorithm).load(model_path, device="cpu")
+    model, config = load_model(model_path, config)
     env = make_env(config.env_id, config.eval_env_kwargs, render_mode="rgb_array" if video_dir else None)
     if video_dir is not None:
         from gymnasium.wrappers import RecordVideo
@@ -36,18 +35,46 @@ def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, 
         env.close()
 
 
+def load_model(model_path, config=None):
+    """The SB3 model of a ``.zip`` written by ``emmi-gym train``, on the CPU, as the algorithm of its run's
+    configuration, and that configuration (``config``: given if the caller has loaded it already)."""
+    model_path = Path(model_path)
+    if not model_path.is_file():
+        raise FileNotFoundError(f"no model at {model_path}")
+    config = config or load_run_config(model_path)
+    return algorithm_class(config.algorithm).load(model_path, device="cpu"), config
+
+
+def compare_model(model_path, name: str = "agent", world=OWN_WORLD, episodes: int = 10, seed: int = EVALUATION_SEED,
+                  baselines=(), *, workers: int | None = None, progress: bool = True) -> list[dict]:
+    """The model and the scripted ``baselines`` on the same ``episodes`` (world, seed) pairs, paired, in its
+    run's evaluation env (:func:`emmi_gym.experiments.comparison.compare_on`): ``world`` a world, map
+    set, folder or glob (default: the evaluation env's own world), its maps or seeds taken as
+    :func:`~emmi_gym.experiments.comparison.episodes_on` says. Rows carry ``name`` for the model."""
+    import gymnasium as gym
+
+    from ..experiments.comparison import ComparisonSettings, TrainedAgent, compare_on, episodes_on
+
+    config = load_run_config(Path(model_path))
+    options = dict(config.eval_env_kwargs)
+    own_world = options.pop("world", gym.spec(config.env_id).kwargs.get("world"))
+    pairs = episodes_on(own_world if world is OWN_WORLD else world, episodes, seed)
+    policies = [TrainedAgent(str(model_path), name), *baselines]
+    return compare_on(pairs, policies, ComparisonSettings(config.env_id, options), workers=workers,
+                      progress=progress)
+
+
 def format_table(rows: list[dict], columns=None) -> str:
     """A fixed-width text table of episode rows (NaN shown as '-')."""
     columns = columns or list(rows[0])
-    widths = {c: max(len(c), 9) for c in columns}
 
-    def cell(value, c):
+    def text(value) -> str:
         if isinstance(value, float):
-            text = "-" if value != value else f"{value:.3f}" if abs(value) < 1000 else f"{value:.0f}"
-        else:
-            text = str(value)
-        return text.rjust(widths[c])
+            return "-" if value != value else f"{value:.3f}" if abs(value) < 1000 else f"{value:.0f}"
+        return str(value)
 
-    lines = [" ".join(c.rjust(widths[c]) for c in columns)]
-    lines += [" ".join(cell(row.get(c, float("nan")), c) for c in columns) for row in rows]
+    cells = [[text(row.get(c, float("nan"))) for c in columns] for row in rows]
+    widths = [max(len(c), 9, *(len(line[k]) for line in cells)) for k, c in enumerate(columns)]
+    lines = [" ".join(c.rjust(w) for c, w in zip(columns, widths))]
+    lines += [" ".join(t.rjust(w) for t, w in zip(line, widths)) for line in cells]
     return "\n".join(lines)

@@ -4,14 +4,15 @@ periodic held-out evaluation with the ground-truth metrics, checkpoints, resumin
 A run folder holds ``config.yaml`` (the resolved configuration), ``model.zip`` (the final
 model), ``checkpoints/`` (``model_<steps>_steps.zip``, with the replay buffer for off-policy
 algorithms), ``eval/`` (SB3's ``evaluations.npz`` and the best model),
-``eval_ground_truth.csv`` (the ground-truth means of every evaluation) and ``tb/``
-(TensorBoard logs).
+``eval_ground_truth.csv`` (the ground-truth means of every evaluation), ``training.yaml``
+(steps, wall time, machine and versions of the finished model) and ``tb/`` (TensorBoard logs).
 """
 
 from __future__ import annotations
 
 import copy
 import os
+import platform
 import re
 import signal
 import sys
@@ -249,6 +250,37 @@ def close_vec_env(env, timeout: float = 3.0) -> None:
     env.closed = True
 
 
+#: The run folder's record of how its model was trained (steps, wall time over every resumed part, machine).
+TRAINING_RECORD = "training.yaml"
+
+
+def machine_description() -> str:
+    """This machine in a few words: its processor's name and core count."""
+    name = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            name = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), name)
+    except OSError:
+        pass
+    return f"{name}, {os.cpu_count()} cores"
+
+
+def record_training(run_dir: Path, timesteps: int, wall_seconds: float) -> None:
+    """Write :data:`TRAINING_RECORD` into ``run_dir``: the steps, the wall time summed over the run's
+    parts (a resumed run adds to what its folder recorded), the date, the machine and the versions."""
+    import torch
+
+    from .. import __version__
+
+    path = run_dir / TRAINING_RECORD
+    earlier = yaml.safe_load(path.read_text()) if path.is_file() else {}
+    record = {"timesteps": timesteps,
+              "wall_seconds": round(float(earlier.get("wall_seconds", 0.0)) + wall_seconds, 1),
+              "finished": time.strftime("%Y-%m-%d %H:%M %Z"), "machine": machine_description(),
+              "emmi_gym": __version__, "torch": str(torch.__version__)}
+    save_atomically(lambda target: Path(target).write_text(yaml.safe_dump(record, sort_keys=False)), path)
+
+
 def load_run_config(model_path) -> AgentConfig:
     """The configuration written beside a model (in its folder or the run folder above a checkpoint)."""
     model_path = Path(model_path)
@@ -314,6 +346,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
                         progress_bar=progress, reset_num_timesteps=start is None, tb_log_name="run")
         with interrupts_deferred():
             model_path = save_atomically(model.save, run_dir / "model.zip")
+            record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started)
     except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
         interrupted = True
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short

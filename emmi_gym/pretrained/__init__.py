@@ -1,0 +1,42 @@
+"""Trained agents that ship with the package, each in a folder of its name: ``model.zip`` (the model
+``emmi-gym train`` wrote), ``config.yaml`` (its run's configuration) and ``MODEL_CARD.md``
+(configuration, budget, seed, training time and its evaluation table).
+
+One line loads one (needs the ``train`` extra)::
+
+    model = emmi_gym.pretrained.load("loop_corridor_emmi")
+
+and ``emmi-gym evaluate --pretrained loop_corridor_emmi`` plays it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+FOLDER = Path(__file__).resolve().parent
+
+
+def names() -> list[str]:
+    """The names of the shipped agents."""
+    return sorted(p.parent.name for p in FOLDER.glob("*/model.zip"))
+
+
+def model_path(name: str) -> Path:
+    """The ``model.zip`` of the shipped agent ``name`` (its ``config.yaml`` and ``MODEL_CARD.md`` beside it)."""
+    if name not in names():
+        raise ValueError(f"no pretrained agent {name!r}; the package ships {names()}")
+    return FOLDER / name / "model.zip"
+
+
+def config(name: str):
+    """The :class:`~emmi_gym.training.config.AgentConfig` the agent ``name`` was trained with."""
+    from ..training.train import load_run_config
+
+    return load_run_config(model_path(name))
+
+
+def load(name: str):
+    """The Stable-Baselines3 model of the shipped agent ``name``, on the CPU."""
+    from ..training.evaluate import load_model
+
+    return load_model(model_path(name))[0]

@@ -1,0 +1,96 @@
+"""Hash a few seeded episodes of every registered id and one log replay.
+
+A refactoring that must not change behaviour prints the same hashes before and after::
+
+    python scripts/episode_hashes.py > after.txt     # and the same on the code before
+
+Each line is ``<what> <sha256 of every observation, reward, flag and numeric info value>``.
+Only the public Gymnasium API and the ``emmi-gym replay`` command are used, so the script
+runs unchanged on any version of the package.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import emmi_gym
+
+ROOT = Path(__file__).resolve().parent.parent
+LOG = ROOT / "tests" / "data" / "intel-first-loop.log.gz"
+
+
+def _feed(digest, value) -> None:
+    if isinstance(value, dict):
+        for key in sorted(value):
+            digest.update(str(key).encode())
+            _feed(digest, value[key])
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            _feed(digest, item)
+    elif isinstance(value, (bool, int, float, np.number, np.bool_, np.ndarray)):
+        digest.update(np.ascontiguousarray(np.asarray(value)).tobytes())
+    elif isinstance(value, str):
+        digest.update(value.encode())
+
+
+def episode_hash(env_id: str, seed: int, steps: int) -> str:
+    """Play ``steps`` seeded random actions (masked for waypoint envs); hash everything seen."""
+    env = gym.make(env_id)
+    digest = hashlib.sha256()
+    obs, info = env.reset(seed=seed)
+    _feed(digest, obs)
+    _feed(digest, info)
+    rng = np.random.default_rng(seed)
+    for _ in range(steps):
+        masks = getattr(env.unwrapped, "action_masks", None)
+        if isinstance(env.action_space, gym.spaces.Discrete) and masks is not None:
+            allowed = np.flatnonzero(masks())
+            action = int(rng.choice(allowed)) if allowed.size else 0
+        else:
+            low, high = env.action_space.low, env.action_space.high
+            action = rng.uniform(low, high).astype(env.action_space.dtype)
+        obs, reward, terminated, truncated, info = env.step(action)
+        for value in (obs, reward, terminated, truncated, info):
+            _feed(digest, value)
+        if terminated or truncated:
+            break
+    env.close()
+    return digest.hexdigest()
+
+
+def replay_hash() -> str:
+    """Replay the test log with the command line and hash its metrics and trajectory."""
+    with tempfile.TemporaryDirectory() as out:
+        subprocess.run([sys.executable, "-m", "emmi_gym.cli", "replay", str(LOG), "--particles", "8",
+                        "--out", out, "--quiet"], check=True, capture_output=True)
+        digest = hashlib.sha256()
+        for name in ("metrics.csv", "best_trajectory.tum"):
+            digest.update((Path(out) / name).read_bytes())
+        return digest.hexdigest()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--decisions", type=int, default=12, help="steps per waypoint episode")
+    parser.add_argument("--velocity-steps", type=int, default=400, help="steps per velocity episode")
+    args = parser.parse_args()
+    gym.register_envs(emmi_gym)
+    ids = sorted(i for i in gym.registry if i.startswith("emmi_gym/"))
+    for env_id in ids:
+        steps = args.velocity_steps if "Velocity" in env_id else args.decisions
+        for seed in args.seeds:
+            print(f"{env_id} seed={seed} {episode_hash(env_id, seed, steps)}", flush=True)
+    print(f"replay {LOG.name} {replay_hash()}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

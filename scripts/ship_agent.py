@@ -1,0 +1,106 @@
+"""Ship a trained agent with the package: copy a run's model into emmi_gym/pretrained/NAME/ and write its
+model card (configuration, budget, seed, training time, and its evaluation beside scripted baselines).
+
+    python scripts/ship_agent.py runs/ppo_emmi_seed0 loop_corridor_emmi --episodes 30 \\
+        --baselines close_loop_first explore_first frontier
+
+The evaluation is ``emmi-gym evaluate --pretrained NAME`` with the same options, on held-out seeds (and,
+with ``--world``, on the maps given, e.g. ``dungeon_maps/test``); the card says how to reproduce it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import yaml
+
+from emmi_gym import pretrained
+from emmi_gym.experiments.comparison import markdown_table
+from emmi_gym.training.episodes import summarise
+from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
+from emmi_gym.training.train import TRAINING_RECORD, load_run_config, machine_description
+
+MAX_MODEL_BYTES = 10 * 2**20
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run", type=Path, help="run folder of 'emmi-gym train' (model.zip, config.yaml)")
+    parser.add_argument("name", help="the agent's name in the package")
+    parser.add_argument("--episodes", type=int, default=30)
+    parser.add_argument("--seed", type=int, default=EVALUATION_SEED)
+    parser.add_argument("--world", default=None, help="world, map set, folder or glob (default: the run's own)")
+    parser.add_argument("--baselines", nargs="*", default=["frontier", "active_loop_closing"])
+    parser.add_argument("--training-seconds", type=float, default=None,
+                        help=f"wall time of training, for a run folder without {TRAINING_RECORD}")
+    parser.add_argument("--workers", type=int, default=None)
+    args = parser.parse_args()
+    model = args.run / "model.zip"
+    if not model.is_file():
+        parser.error(f"no model.zip in {args.run}")
+    if model.stat().st_size > MAX_MODEL_BYTES:
+        parser.error(f"{model} has {model.stat().st_size} bytes; a shipped agent has at most {MAX_MODEL_BYTES}")
+    record = yaml.safe_load((args.run / TRAINING_RECORD).read_text()) if (args.run / TRAINING_RECORD).is_file() \
+        else None
+    if record is None and args.training_seconds is None:
+        parser.error(f"{args.run} has no {TRAINING_RECORD}: give --training-seconds")
+
+    folder = pretrained.FOLDER / args.name
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in ("model.zip", "config.yaml", TRAINING_RECORD):
+        if (args.run / name).is_file():
+            shutil.copyfile(args.run / name, folder / name)
+    config = load_run_config(folder / "model.zip")
+
+    started = time.perf_counter()
+    rows = compare_model(folder / "model.zip", args.name, OWN_WORLD if args.world is None else args.world,
+                         args.episodes, args.seed, args.baselines, workers=args.workers)
+    minutes = (time.perf_counter() - started) / 60
+    policies = [args.name, *args.baselines]
+    means = [{"policy": p, **summarise([{k: v for k, v in r.items() if isinstance(v, float)}
+                                        for r in rows if r["policy"] == p])} for p in policies]
+    tables = [markdown_table(rows, args.name, b, f"{args.name} - {b}") for b in args.baselines]
+
+    command = (f"emmi-gym evaluate --pretrained {args.name} --episodes {args.episodes} --seed {args.seed}"
+               f"{f' --world {args.world}' if args.world else ''} --baselines {' '.join(args.baselines)}")
+    seconds = record["wall_seconds"] if record else args.training_seconds
+    trained_on = record["machine"] if record else "the machine below"
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    card = f"""# {args.name}
+
+{config.algorithm} ({config.policy}) on `{config.env_id}` with the `{config.env_kwargs.get('reward', 'emmi')}` reward.
+
+- Budget: {config.total_timesteps} decisions, seed {config.seed}, {config.n_envs} envs.
+- Training time: {seconds / 60:.1f} min of wall time on {trained_on}.
+- Load it: `model = emmi_gym.pretrained.load("{args.name}")`; play it: `{command}`.
+
+## Configuration
+
+```yaml
+{yaml.safe_dump(config.as_yaml_dict(), sort_keys=False).strip()}
+```
+
+## Evaluation
+
+{args.episodes} held-out episodes (seeds from {args.seed}{f', maps of {args.world}' if args.world else ''}), the
+scripted baselines on the same episodes; measured on {time.strftime('%Y-%m-%d')} at commit {commit} on
+{machine_description()} ({minutes:.0f} min). Reproduce: `{command}`.
+
+Means over episodes:
+
+```
+{format_table(means)}
+```
+
+""" + "\n\n".join(tables) + "\n"
+    (folder / "MODEL_CARD.md").write_text(card)
+    print(card)
+    print(f"wrote {folder}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,61 @@
+"""Reward alignment: returns recomputed from kept steps, and how they rank the policies' final maps."""
+
+import math
+
+import numpy as np
+import pytest
+
+from emmi_gym.experiments.comparison import ComparisonSettings, compare_on
+from emmi_gym.experiments.reward_alignment import Discount, alignment, discounted_return, markdown, policy_front
+
+
+def step(emmi=0.0, coverage=0.0, duration=100, collision=0.0):
+    return {"emmi": emmi, "coverage": coverage, "collision": collision, "duration": duration}
+
+
+def test_discounts_follow_decisions_or_robot_time():
+    steps = [step(emmi=1.0, duration=50), step(emmi=1.0, duration=150), step(emmi=1.0, duration=10)]
+    assert discounted_return(steps, "emmi", 0.0, Discount()) == 3.0
+    assert discounted_return(steps, "emmi", 0.0, Discount(0.5)) == 1.0 + 0.5 + 0.25
+    assert discounted_return(steps, "emmi", 0.0, Discount(0.5, 100)) == pytest.approx(1 + 0.5 ** 0.5 + 0.5 ** 2)
+    assert discounted_return(steps, "emmi", 0.01, Discount()) == pytest.approx(3.0 - 0.01 * 210)
+    assert Discount.parse("0.9@100") == Discount(0.9, 100) and Discount.parse("none") == Discount()
+    for bad in ("fast", "1.5", "0.9@0"):
+        with pytest.raises(ValueError, match="discount"):
+            Discount.parse(bad)
+
+
+def episode(world, policy, quality, ate, steps):
+    return {"world": world, "seed": 0, "policy": policy, "oracle_accuracy": quality, "ate": ate,
+            "sim_steps": sum(s["duration"] for s in steps), "steps": steps}
+
+
+def test_agreement_and_correlation_rank_the_better_map_against_the_higher_return():
+    # "slow" maps better on both plans; coverage pays it more, EMMI pays "fast" more on plan b
+    rows = [episode("a", "fast", 0.80, 0.4, [step(emmi=0.5, coverage=0.5)]),
+            episode("a", "slow", 0.90, 0.2, [step(emmi=0.6, coverage=0.6, duration=300)]),
+            episode("b", "fast", 0.70, 0.5, [step(emmi=0.9, coverage=0.2)]),
+            episode("b", "slow", 0.75, 0.3, [step(emmi=0.1, coverage=0.4, duration=300)])]
+    results = {(r["reward"], r["time_cost"]): r for r in alignment(rows, ["emmi", "coverage"], [0.0, 0.01],
+                                                                   [Discount()])}
+    assert results["coverage", 0.0]["agree oracle_accuracy"] == "2/2" and results["coverage", 0.0]["prefers"] == "slow"
+    centred_returns, centred_quality = [-0.05, 0.05, -0.1, 0.1], [-0.05, 0.05, -0.025, 0.025]
+    assert results["coverage", 0.0]["r oracle_accuracy"] == pytest.approx(np.corrcoef(centred_returns,
+                                                                                      centred_quality)[0, 1])
+    assert results["emmi", 0.0]["agree oracle_accuracy"] == "1/2" and results["emmi", 0.0]["agree ate"] == "1/2"
+    assert results["coverage", 0.01]["prefers"] == "fast"   # robot time costs more than the better map earns
+    assert results["coverage", 0.01]["agree ate"] == "0/2"
+    front = {row["policy"]: row for row in policy_front(rows)}
+    assert front["slow"]["sim_steps"] == 300 and front["fast"]["oracle_accuracy"] == pytest.approx(0.75)
+    assert "| coverage | +0.010 | none |" in markdown(list(results.values()), policy_front(rows), "t")
+
+
+def test_kept_steps_add_up_to_the_return_the_env_paid():
+    settings = ComparisonSettings("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 3,
+                                                          "generator": {"nx": 2, "ny": 2, "n_loops": 1}})
+    rows = compare_on([(None, 4)], ["frontier", "random"], settings, workers=1, progress=False, keep_steps=True)
+    time_cost = settings.make_env(None).unwrapped.config.time_cost
+    for row in rows:
+        assert len(row["steps"]) == row["decisions"] >= 1
+        assert math.isclose(discounted_return(row["steps"], "emmi", time_cost, Discount()), row["return"],
+                            rel_tol=1e-9, abs_tol=1e-12)
