@@ -1,0 +1,84 @@
+"""Playing trained agents: beside the scripted baselines on the same episodes, and the agents shipped."""
+
+import csv
+
+import gymnasium as gym
+import pytest
+
+from emmi_gym import pretrained
+from emmi_gym.cli import main
+from emmi_gym.experiments.comparison import ComparisonSettings, run_episode
+from emmi_gym.training.config import parse_agent_config
+from emmi_gym.training.train import load_run_config, train
+from emmi_gym.world.map_sets import map_set_files
+
+#: A tiny waypoint agent on a small generated world, two decisions an episode.
+TINY_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_decisions": 2}
+
+
+@pytest.fixture(scope="module")
+def tiny_agent(tmp_path_factory):
+    run = tmp_path_factory.mktemp("run")
+    data = {"env": {"id": "emmi_gym/Explore-v0", "kwargs": TINY_ENV}, "algorithm": "MaskablePPO",
+            "policy": "MultiInputPolicy",
+            "hyperparameters": {"policy_kwargs": {"net_arch": [16]}, "n_steps": 8, "batch_size": 8, "n_epochs": 1},
+            "n_envs": 1, "vec_env": "dummy", "total_timesteps": 8, "seed": 3,
+            "eval": {"freq": 1000, "episodes": 1, "seed": 500}, "checkpoint_freq": 1000}
+    return train(parse_agent_config(data), run, progress=False).model_path
+
+
+def read_rows(path) -> list[dict]:
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_evaluate_plays_the_model_and_the_baselines_on_the_same_episodes(tiny_agent, tmp_path, capsys):
+    out = tmp_path / "eval"
+    assert main(["evaluate", str(tiny_agent), "--episodes", "2", "--seed", "7", "--baselines", "frontier", "random",
+                 "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "agent - frontier: 2 pairs" in printed and "agent - random: 2 pairs" in printed
+    rows = read_rows(out / "episodes.csv")
+    assert sorted((r["policy"], r["seed"]) for r in rows) == sorted(
+        (p, s) for p in ("agent", "frontier", "random") for s in ("7", "8"))
+    # the baseline's episodes are those the comparison plays on its own for the same world and seed
+    config = load_run_config(tiny_agent)
+    alone = run_episode(None, 8, "frontier", ComparisonSettings(config.env_id, config.eval_env_kwargs))
+    played = next(r for r in rows if r["policy"] == "frontier" and r["seed"] == "8")
+    assert float(played["ate"]) == alone["ate"] and float(played["coverage"]) == alone["coverage"]
+
+
+def test_evaluate_on_a_map_set_plays_its_first_maps(tiny_agent, tmp_path, capsys):
+    out = tmp_path / "eval"
+    assert main(["evaluate", str(tiny_agent), "--world", "dungeon_maps/test", "--episodes", "2",
+                 "--baselines", "frontier", "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    plans = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
+    assert sorted({r["world"] for r in read_rows(out / "episodes.csv")}) == sorted(plans)
+
+
+def test_evaluate_refuses_unknown_baselines_and_agents(tiny_agent, capsys):
+    for argv, expected in [([str(tiny_agent), "--baselines", "nearest"], "--baselines: unknown ['nearest']"),
+                           (["--pretrained", "nope"], "no pretrained agent 'nope'"),
+                           ([], "give a model .zip or --pretrained NAME"),
+                           ([str(tiny_agent), "--pretrained", "loop_corridor_emmi"], "one of them")]:
+        with pytest.raises(SystemExit) as stop:
+            main(["evaluate", *argv])
+        assert stop.value.code == 2 and expected in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", pretrained.names())
+def test_each_shipped_agent_loads_in_one_line_and_picks_a_valid_target(name):
+    model = pretrained.load(name)
+    config = pretrained.config(name)
+    card = (pretrained.FOLDER / name / "MODEL_CARD.md").read_text()
+    assert f"{config.total_timesteps} decisions, seed {config.seed}" in card and "| ATE (m) |" in card
+    env = gym.make(config.env_id, **config.eval_env_kwargs)
+    observation, _ = env.reset(seed=200_000)
+    masks = env.unwrapped.action_masks()
+    action, _ = model.predict(observation, action_masks=masks, deterministic=True)
+    assert masks[int(action)]
+    env.close()
+
+
+def test_the_package_ships_the_reference_agents():
+    assert {"loop_corridor_emmi"} <= set(pretrained.names())
