@@ -388,6 +388,11 @@ def test_emmi_of_parts_is_the_same_on_any_number_of_threads():
         set_kernel_threads(threads)
     assert disputed.size > 60000 and one == three
     assert one == pytest.approx(C.emmi(grids, w, lut=lut), rel=1e-12)
+    # its numerator and denominator: the expected map's information (eq. 9 summed) and its observed cells
+    information, observed = C.expected_map_information_of_parts(rows, w, agreed, lut=lut)
+    em = C.expected_map(grids, w, lut=lut)
+    assert observed == np.count_nonzero(C.observed_cells(em)) and one == information / observed
+    assert information == pytest.approx(C.map_information(em[C.observed_cells(em)]), rel=1e-12)
 
 
 def test_the_pose_entropies_wrap_of_a_heading_difference_is_the_remainders_number():

@@ -68,14 +68,17 @@ def test_spaces_and_info():
     obs, info = env.reset(seed=1)
     assert obs["map"].shape == (2, 64, 64) and obs["map"].dtype == np.uint8
     assert env.observation_space.contains(obs)
-    for key in ("emmi", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy", "joint_entropy",
+    for key in ("emmi", "map_information", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy", "joint_entropy",
                 "neff", "resampled", "coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate",
                 "collisions", "sim_steps", "reward_components"):
         assert key in info
     assert "rbpf_updates" not in info  # only with update_records
+    before = info
     obs, reward, terminated, truncated, info = env.step(frontier_action(env))
     assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage",
-                                              "emmi_coverage", "time", "collision"}
+                                              "emmi_coverage", "map_information", "time", "collision"}
+    gained = info["map_information"] - before["map_information"]
+    assert gained > 100 and info["reward_components"]["map_information"] == pytest.approx(1e-3 * gained)
     expected = info["reward_components"]["emmi"] + info["reward_components"]["time"] + \
         info["reward_components"]["collision"]
     assert reward == pytest.approx(expected)
@@ -342,7 +345,8 @@ def test_spinning_in_place_farms_emmi_but_not_emmi_coverage():
     assert time_cost == pytest.approx(-0.3)
     assert spin["emmi"] + time_cost > 1.0
     assert spin["emmi_coverage"] < 0.2 * spin["emmi"]
-    assert all(still[name] == pytest.approx(0.0, abs=1e-9) for name in ("emmi", "emmi_coverage", "coverage"))
+    assert all(still[name] == pytest.approx(0.0, abs=1e-9) for name in ("emmi", "emmi_coverage", "coverage",
+                                                                          "map_information"))
 
 
 def test_pooled_map_keeps_thin_walls():

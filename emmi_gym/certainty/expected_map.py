@@ -68,13 +68,23 @@ def emmi_of_parts(cell_codes, weights, agreed_counts, *, lut, log_weights: bool 
     disputed ones are averaged with the weights. Equal to :func:`emmi` of the whole grids, at the
     cost of the disputed cells, split among the kernel threads (the same result on any number of them).
     """
+    info, n_obs = expected_map_information_of_parts(cell_codes, weights, agreed_counts, lut=lut,
+                                                    log_weights=log_weights, observed_tol=observed_tol)
+    return info / n_obs if n_obs else 0.0
+
+
+def expected_map_information_of_parts(cell_codes, weights, agreed_counts, *, lut, log_weights: bool = False,
+                                      observed_tol: float = DEFAULT_OBSERVED_TOL) -> tuple[float, int]:
+    """The information of the expected map, eq. (9) summed over its observed cells, in bits, and how
+    many cells are observed (EMMI's numerator and denominator, eq. 10-11), from the same parts as
+    :func:`emmi_of_parts`."""
     rows, w, table, offset = cell_rows(cell_codes, weights, lut=lut, log_weights=log_weights)
     info, n_obs = information_and_observed(_expected_at_rows(rows, w, table, offset), observed_tol)
     counts = np.asarray(agreed_counts)
     observed = (counts > 0) & observed_cells(table, observed_tol)
     info += float(counts[observed] @ cell_information(table[observed]))
     n_obs += int(counts[observed].sum())
-    return info / n_obs if n_obs else 0.0
+    return info, n_obs
 
 
 def weighted_map_entropy(grids, weights, *, logodds: bool = False, lut=None, log_weights: bool = False) -> float:

@@ -23,7 +23,7 @@ from ..world import GeneratorConfig, LaserConfig, OdometryNoise
 from ..world.images import DEFAULT_PIXEL_SIZE, PIXEL_SIZE
 from ..world.presets import LASER_PRESETS, ODOMETRY_PRESETS, laser_config, odometry_config
 
-REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage")
+REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage", "map_information")
 ACTION_MODES = ("waypoint", "velocity")
 VELOCITY_ACTIONS = ("continuous", "discrete")
 OBSERVATIONS = ("dict", "image")
@@ -35,8 +35,10 @@ SOURCE = "gym.make"
 #: EMMI lies in [0, 1] bits/cell and moves by 0.01-0.1 per macro-action; the pose entropy
 #: (nats) by about 1; the joint entropy (nats, dominated by eq. 8 over the whole grid) by
 #: thousands as cells get observed; coverage is a fraction of the reachable free space, and so is
-#: EMMI x coverage (bits per reachable cell).
-REWARD_SCALES = {"emmi": 10.0, "pose_entropy": 0.1, "joint_entropy": 1e-3, "coverage": 10.0, "emmi_coverage": 10.0}
+#: EMMI x coverage (bits per reachable cell); the expected map's information (bits, one per certain
+#: cell) grows by hundreds to thousands as a macro-action observes new cells.
+REWARD_SCALES = {"emmi": 10.0, "pose_entropy": 0.1, "joint_entropy": 1e-3, "coverage": 10.0, "emmi_coverage": 10.0,
+                 "map_information": 1e-3}
 
 
 @dataclass(frozen=True)

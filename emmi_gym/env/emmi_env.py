@@ -11,11 +11,11 @@ from ..navigation.follower import WaypointFollower
 from ..scoring.oracle import OracleMap
 from ..scoring.scores import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
 from ..slam import RBPF
-from ..slam.occupancy import ParticleMaps
 from ..world import RobotConfig, Simulator, rasterise
 from ..world.map_sets import WorldSource
 from .actions import ActionType, action_factory
 from .config import REWARDS, EnvConfig, make_config
+from .memory import check_env_memory
 from .observation import ObservationType, observation_factory
 from .rendering import HumanWindow, render_frame
 from .rewards import Snapshot, reward_components, total_reward
@@ -60,7 +60,7 @@ class EmmiEnv(gym.Env):
                              f"has {sorted(fixed.routes)}: use start_at='start'")
         if fixed is not None:  # refuse maps too large now, not at the first reset
             grid = GridGeometry.covering(*fixed.bounds, cfg.resolution)
-            ParticleMaps.check_memory(grid.rows, grid.cols, cfg.particles, cfg.resolution)
+            check_env_memory(grid, cfg.particles, fixed.source or fixed.name)
         self.action_type: ActionType = action_factory(self, cfg)
         self.action_space = self.action_type.space()
         self.observation_type: ObservationType = observation_factory(self, cfg)
@@ -124,6 +124,8 @@ class EmmiEnv(gym.Env):
                            f"{follower.index} {follower.remaining[0]}")
 
     def _set_world(self, world) -> None:
+        check_env_memory(GridGeometry.covering(*world.bounds, self.config.resolution), self.config.particles,
+                         world.source or world.name)  # before any of its grids is made
         self.world = world
         self.sim = Simulator(world, self.robot_config, self.laser_config, self.odometry_config)
         self.geometry = GridGeometry.covering(*world.bounds, self.config.resolution)
@@ -210,7 +212,7 @@ class EmmiEnv(gym.Env):
 
     def _take_snapshot(self) -> Snapshot:
         m = self._metrics
-        return Snapshot(m.emmi, m.pose_entropy, m.joint_entropy, self._coverage)
+        return Snapshot(m.emmi, m.pose_entropy, m.joint_entropy, self._coverage, m.map_information)
 
     def action_masks(self) -> np.ndarray:
         """Which actions are valid now (for sb3-contrib's MaskablePPO): in waypoint mode the non-empty
@@ -262,7 +264,8 @@ class EmmiEnv(gym.Env):
     def _info(self, components: dict) -> dict:
         m = self._metrics
         return {
-            "emmi": m.emmi, "mean_information_best": m.mean_information_best, "pose_entropy": m.pose_entropy,
+            "emmi": m.emmi, "map_information": m.map_information, "mean_information_best": m.mean_information_best,
+            "pose_entropy": m.pose_entropy,
             "weight_entropy": m.weight_entropy, "path_entropy": m.path_entropy, "joint_entropy": m.joint_entropy,
             "neff": m.neff, "resampled": m.resampled, "coverage": self._coverage,
             "map_accuracy": self._map_accuracy, "oracle_accuracy": self._oracle_accuracy,

@@ -9,7 +9,11 @@ Each variant (see :data:`~emmi_gym.env.config.REWARD_SCALES` for the scales and 
   oracle map, see ``EmmiEnv._refresh``);
 - ``emmi_coverage``: scale * the change of EMMI x coverage: the mean information spread over
   the whole reachable free space (unexplored cells count as 0 bits) rather than over the
-  observed cells only.
+  observed cells only;
+- ``map_information``: scale * the change of the expected map's information, eq. (9) summed over
+  its observed cells (EMMI's numerator): a scan pays for the cells it adds to the map when the
+  particles agree where it lands, and a closed loop pays as the disputed cells come to agree,
+  while re-scanning cells already at the clamp pays nothing.
 
 EMMI is a *mean* over the observed cells: re-scanning the same cells raises it as each
 cell's log-odds approach the clamp, so spinning in place pays under ``emmi`` (and under
@@ -34,6 +38,7 @@ class Snapshot:
     pose_entropy: float
     joint_entropy: float
     coverage: float
+    map_information: float
 
 
 def reward_components(before: Snapshot, after: Snapshot, sim_steps: int, collisions: int,
@@ -45,6 +50,7 @@ def reward_components(before: Snapshot, after: Snapshot, sim_steps: int, collisi
         "joint_entropy": REWARD_SCALES["joint_entropy"] * (before.joint_entropy - after.joint_entropy),
         "coverage": REWARD_SCALES["coverage"] * (after.coverage - before.coverage),
         "emmi_coverage": REWARD_SCALES["emmi_coverage"] * (after.emmi * after.coverage - before.emmi * before.coverage),
+        "map_information": REWARD_SCALES["map_information"] * (after.map_information - before.map_information),
         "time": -config.time_cost * sim_steps,
         "collision": -config.collision_cost * collisions,
     }

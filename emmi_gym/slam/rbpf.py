@@ -56,6 +56,7 @@ class UpdateMetrics:
     step: int
     time: float
     emmi: float                    # bits/cell, eq. (11)
+    map_information: float         # bits, eq. (9) summed over the expected map's observed cells
     mean_information_best: float   # bits/cell, eq. (10) of the best particle's map
     pose_entropy: float            # nats
     weight_entropy: float          # nats
@@ -360,8 +361,9 @@ class RBPF:
                  cpu_ms: float) -> UpdateMetrics:
         """Every certainty measure of the particle set, through :mod:`emmi_gym.certainty`.
 
-        EMMI needs a pass over the cells the particles dispute only (the agreed cells
-        enter through their code histogram, :func:`certainty.emmi_of_parts`); map
+        EMMI and the expected map's information need a pass over the cells the particles dispute
+        only (the agreed cells enter through their code histogram,
+        :func:`certainty.expected_map_information_of_parts`); map
         entropies and the best map's mean information come from the grids' code
         histograms. All are kept current by the insertion and the resampling.
         """
@@ -369,9 +371,11 @@ class RBPF:
         lut, counts = self.cell_codes.probability, self.maps.counts
         w = self.weights
         path_entropy = certainty.path_entropy_of_parts(self.paths, self._path_sincos[:, :self._n_path], w)
+        information, n_observed = certainty.expected_map_information_of_parts(
+            self.maps.disputed_codes(), w, self.maps.agreed_counts, lut=lut)
         metrics = UpdateMetrics(
-            step=step, time=timestamp,
-            emmi=certainty.emmi_of_parts(self.maps.disputed_codes(), w, self.maps.agreed_counts, lut=lut),
+            step=step, time=timestamp, emmi=information / n_observed if n_observed else 0.0,
+            map_information=information,
             mean_information_best=certainty.mean_information_of_code_counts(counts[self.best], lut),
             pose_entropy=certainty.pose_entropy(self.poses, w),
             weight_entropy=certainty.weight_entropy(w),
