@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 import emmi_gym
+from emmi_gym.env.config import REWARD_SCALES, REWARDS
 from emmi_gym.env.registration import ENV_IDS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -144,3 +145,21 @@ def test_every_public_module_has_an_api_page():
     assert not missing, f"public modules with no '::: module' line in docs/api/*.md: {missing}"
     gone = sorted(name for name in documented if not any(name == m or name.startswith(m + ".") for m in modules))
     assert not gone, f"docs/api/*.md documents modules that do not exist: {gone}"
+
+
+def test_the_rewards_page_states_every_variant_with_its_scale():
+    text = (DOCS / "rewards.md").read_text()
+    for name in REWARDS:
+        row = re.search(rf'^\| `"{name}"`(?: \(default\))? \|.*\| ([^|]+) \|$', text, re.M)
+        assert row, f'docs/rewards.md has no row for the reward "{name}"'
+        assert float(row.group(1)) == REWARD_SCALES[name], f"docs/rewards.md: {name}'s scale is {REWARD_SCALES[name]}"
+
+
+def test_the_info_page_states_every_key():
+    env = gym.make("emmi_gym/ExploreVelocity-v0", update_records=True)
+    _, info = env.reset(seed=0)
+    keys = set(info) | set(env.step(env.action_space.sample())[4]) | {"target_kind"}
+    env.close()
+    text = (DOCS / "info.md").read_text()
+    missing = sorted(key for key in keys if f"| `{key}` |" not in text)
+    assert not missing, f"docs/info.md does not state the info keys {missing}"
