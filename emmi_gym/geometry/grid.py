@@ -41,8 +41,11 @@ class GridGeometry:
         if not resolution > 0:
             raise ValueError(f"resolution must be positive, got {resolution!r}")
         x0, y0 = xmin - margin, ymin - margin
-        cols = int(math.ceil((xmax + margin - x0) / resolution - 1e-9))
-        rows = int(math.ceil((ymax + margin - y0) / resolution - 1e-9))
+        cols, rows = (xmax + margin - x0) / resolution - 1e-9, (ymax + margin - y0) / resolution - 1e-9
+        if not (math.isfinite(cols) and math.isfinite(rows)):
+            raise ValueError(f"box ({xmin:g}, {ymin:g}) - ({xmax:g}, {ymax:g}) with margin {margin:g}: more cells of "
+                             f"{resolution:g} m than a number can count")
+        cols, rows = int(math.ceil(cols)), int(math.ceil(rows))
         return cls(float(resolution), float(x0), float(y0), rows, cols)
 
     @property

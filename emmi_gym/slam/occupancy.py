@@ -39,6 +39,13 @@ class MapTooLarge(ValueError):
     """The maps asked for would exceed :data:`MAX_MAP_BYTES`."""
 
 
+def _amount(value, spec: str) -> str:
+    """``value`` formatted by ``spec``, or in three significant digits when that would be unreadably long."""
+    if abs(value) < 1e9:
+        return format(value, spec)
+    return f"{float(value):.3g}" if math.isfinite(value) else "more than 1e308"
+
+
 class ParticleMaps:
     """M occupancy grids on one :class:`GridGeometry`, updated by scans and copied by index.
 
@@ -75,16 +82,22 @@ class ParticleMaps:
     TABLE_ROWS = 4096
 
     @classmethod
+    def bytes_per_cell(cls, n_particles: int) -> int:
+        """What maps of ``n_particles`` grids take per cell (see the constants above)."""
+        return (cls.BYTES_PER_CELL_PARTICLE * n_particles + cls.BYTES_PER_CELL +
+                cls.BYTES_PER_CELL_THREAD * len(chunk_bounds(n_particles)))
+
+    @classmethod
     def check_memory(cls, rows: int, cols: int, n_particles: int, resolution: float) -> None:
-        """Raise :class:`MapTooLarge` if maps of this shape would take more than :data:`MAX_MAP_BYTES`."""
-        threads = len(chunk_bounds(n_particles))
-        needed = rows * cols * (cls.BYTES_PER_CELL_PARTICLE * n_particles + cls.BYTES_PER_CELL +
-                                cls.BYTES_PER_CELL_THREAD * threads)
+        """Raise :class:`MapTooLarge` if maps of this shape would take more than :data:`MAX_MAP_BYTES` (counted
+        in floating point: a pose far off asks for more cells than an integer division can express in GiB)."""
+        needed = float(rows) * float(cols) * cls.bytes_per_cell(n_particles)
         if needed > MAX_MAP_BYTES:
-            raise MapTooLarge(f"maps of {rows} x {cols} cells of {resolution:g} m ({cols * resolution:.0f} x "
-                              f"{rows * resolution:.0f} m) for {n_particles} particles would take {needed / 2**30:.1f} "
-                              f"GiB, above the bound of {MAX_MAP_BYTES / 2**30:.0f} GiB: use coarser cells, fewer "
-                              "particles or a smaller area")
+            raise MapTooLarge(f"maps of {_amount(rows, 'd')} x {_amount(cols, 'd')} cells of {resolution:g} m "
+                              f"({_amount(cols * resolution, '.0f')} x {_amount(rows * resolution, '.0f')} m) for "
+                              f"{n_particles} particles would take {_amount(needed / 2**30, '.1f')} GiB, above the "
+                              f"bound of {MAX_MAP_BYTES / 2**30:.0f} GiB: use coarser cells, fewer particles or a "
+                              "smaller area")
 
     def __init__(self, geometry: GridGeometry, n_particles: int, codes: CellCodes, block: int = 1):
         self.check_memory(geometry.rows, geometry.cols, n_particles, geometry.resolution)
