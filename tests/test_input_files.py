@@ -80,3 +80,53 @@ def test_yaml_12_exponents_read_as_numbers_and_size_is_capped(tmp_path):
         load_world(path)
     with pytest.raises(WorldFileError, match="not a folder"):
         load_world(tmp_path)
+
+
+NESTED = "[" * 50_000 + "]" * 50_000  # 100 kB: PyYAML's composer would recurse 50,000 deep
+
+
+def test_deep_nesting_is_refused_naming_the_file_line_and_column(tmp_path):
+    import gymnasium as gym
+
+    import emmi_gym  # noqa: F401  (registers the ids)
+
+    world = tmp_path / "deep.yaml"
+    world.write_text(WORLD + f"places: {NESTED}\n")
+    deep = r"deep\.yaml:6:\d+: expected valid YAML: lists and mappings nested at most 32 deep"
+    with pytest.raises(WorldFileError, match=deep):
+        load_world(world)
+    world.write_text(f"image: map.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nstart: {NESTED}\n")
+    with pytest.raises(WorldFileError, match=deep.replace(":6:", ":4:")):
+        load_world(world)  # a map_server file
+    (tmp_path / "set").mkdir()
+    world.rename(tmp_path / "set" / "deep.yaml")
+    env = gym.make("emmi_gym/Explore-v0", world=str(tmp_path / "set"))
+    with pytest.raises(WorldFileError, match=r"set/" + deep.replace(":6:", ":4:")):
+        env.reset(seed=0)  # a map set draws it at the reset
+    agent = tmp_path / "deep.yaml"
+    agent.write_text(f"seed: {NESTED}\n")
+    with pytest.raises(AgentConfigError, match=deep.replace(":6:", ":1:")):
+        load_agent_config(agent)
+    agent.write_text("seed: " + "{a: " * 31 + "1" + "}" * 31 + "\n")  # 32 deep with the file's own mapping
+    with pytest.raises(AgentConfigError) as error:
+        load_agent_config(agent)
+    assert "nested" not in str(error.value)  # read; refused for what it says, not for its depth
+
+
+def test_a_chain_of_base_files_is_bounded(tmp_path):
+    for k in range(3000):
+        (tmp_path / f"c{k}.yaml").write_text(f"base: c{k + 1}.yaml\n" if k < 2999 else "algorithm: PPO\n")
+    with pytest.raises(AgentConfigError, match=r"c0\.yaml: field 'base': expected a chain of at most 16 configuration "
+                                               r"files linked by base"):
+        load_agent_config(tmp_path / "c0.yaml")
+
+
+def test_a_broken_file_named_by_an_env_option_names_the_option_and_the_file(tmp_path):
+    (tmp_path / "text.png").write_text("not an image\n")
+    agent = tmp_path / "agent.yaml"
+    agent.write_text(yaml.safe_dump({"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3}},
+                                     "algorithm": "PPO", "n_envs": 1, "vec_env": "dummy",
+                                     "eval": {"env_kwargs": {"world": str(tmp_path / "text.png")}}}))
+    with pytest.raises(AgentConfigError, match=r"agent\.yaml: field 'eval\.env_kwargs\.world': expected an option "
+                                               r"naming a valid file \(.*text\.png: expected a PNG or PGM image"):
+        load_agent_config(agent)

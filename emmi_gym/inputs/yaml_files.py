@@ -1,7 +1,8 @@
 """Reading the YAML files users hand in (world files, agent configurations), safely.
 
 One reader for all of them: files are capped in size before they are read; they must be UTF-8
-text; aliases (``*name``, YAML's only way to make a few bytes expand into gigabytes, the
+text; values nest at most :data:`MAX_YAML_DEPTH` deep (PyYAML builds nested values by recursion,
+which a few hundred kB of brackets would take past Python's recursion limit); aliases (``*name``, YAML's only way to make a few bytes expand into gigabytes, the
 "billion laughs") and duplicate keys are refused; ``1e5`` and ``1.0e5`` read as numbers (YAML
 1.1, PyYAML's dialect, would read them as strings); and every error names the file with the line
 and column, never echoing more than a short excerpt of the file.
@@ -10,25 +11,39 @@ and column, never echoing more than a short excerpt of the file.
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import yaml
 
 from .errors import FieldError, excerpt
+from .paths import input_file
 
 #: The largest YAML file read (world files and agent configurations are a few kB).
 MAX_YAML_BYTES = 1_000_000
+#: The deepest nesting of lists and mappings read (the files' own nest four or five deep).
+MAX_YAML_DEPTH = 32
 YAML_SUFFIXES = (".yaml", ".yml")
 
 
 class _StrictLoader(yaml.SafeLoader):
-    """PyYAML's safe loader without aliases and duplicate keys, with YAML 1.2's exponent floats."""
+    """PyYAML's safe loader without aliases and duplicate keys, with YAML 1.2's exponent floats, nesting at
+    most :data:`MAX_YAML_DEPTH` deep."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
 
     def compose_node(self, parent, index):
         if self.check_event(yaml.AliasEvent):
             raise yaml.composer.ComposerError(None, None, "aliases (*name) are not allowed: write the value out",
                                               self.peek_event().start_mark)
-        return super().compose_node(parent, index)
+        if self._depth >= MAX_YAML_DEPTH and self.check_event(yaml.CollectionStartEvent):
+            raise yaml.composer.ComposerError(None, None, f"lists and mappings nested at most {MAX_YAML_DEPTH} "
+                                              "deep", self.peek_event().start_mark)
+        self._depth += 1
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
 
     def construct_mapping(self, node, deep=False):
         seen = set()
@@ -67,11 +82,7 @@ def parse_yaml(text: str, source: str, error=FieldError):
 
 def read_yaml_file(path, what: str, error=FieldError) -> dict:
     """The mapping in the YAML file ``path`` (``what`` names it in messages: "world file")."""
-    path = Path(path)
-    if path.is_dir():
-        raise error(str(path), "", f"a {what} ({'/'.join(YAML_SUFFIXES)}), not a folder")
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} {path} does not exist")
+    path = input_file(path, what, error)
     if path.suffix.lower() not in YAML_SUFFIXES:
         raise error(str(path), "", f"a {what} in YAML, named *{' or *'.join(YAML_SUFFIXES)}")
     size = path.stat().st_size

@@ -123,9 +123,16 @@ def _merge(base: dict, override: dict, whole=("hyperparameters",)) -> dict:
     return merged
 
 
+#: The longest chain of ``base`` files followed (the shipped configurations use two).
+MAX_BASE_CHAIN = 16
+
+
 def _read(path: Path, seen: tuple[Path, ...] = ()) -> dict:
     if path.resolve() in seen:
         raise AgentConfigError(str(path), "base", "no cycle of base files", [str(p) for p in seen])
+    if len(seen) >= MAX_BASE_CHAIN:
+        raise AgentConfigError(str(seen[0]), "base", f"a chain of at most {MAX_BASE_CHAIN} configuration files "
+                               f"linked by base (this one goes on past {path})")
     data = read_yaml_file(path, "agent configuration", AgentConfigError)
     if "base" in data:
         base = data["base"]
@@ -204,10 +211,18 @@ def _spaces(source: str, env_id: str, kwargs: dict, label: str):
 
     import emmi_gym  # noqa: F401  (registers the ids)
 
+    from ..env.config import SOURCE
+
     try:
         env = gym.make(env_id, **kwargs)
     except FieldError as exc:
-        raise AgentConfigError(source, f"{label}.{exc.field}", exc.expected, exc.got) from None
+        if exc.source == SOURCE:
+            raise AgentConfigError(source, f"{label}.{exc.field}", exc.expected, exc.got) from None
+        # a file an option names (a world, a map of a set) is broken: that option, and the file's own message
+        key = next((key for key, value in kwargs.items() if isinstance(value, str) and value and (
+            Path(exc.source) == Path(value) or Path(value) in Path(exc.source).parents)), None)
+        raise AgentConfigError(source, f"{label}.{key}" if key else label, f"an option naming a valid file ({exc})") \
+            from None
     except ValueError as exc:
         raise AgentConfigError(source, label, f"valid environment options ({exc})") from None
     spaces = env.action_space, env.observation_space
