@@ -1,5 +1,7 @@
 """Worlds from occupancy images (ROS map_server maps, DungeonMaps plans) and map sets."""
 
+import struct
+import zlib
 from pathlib import Path
 
 import gymnasium as gym
@@ -184,3 +186,117 @@ def test_real_buildings_load_by_name(name):
     assert reachable.sum() * 0.01 > 300  # m^2
     assert agreement(world, reachable, 0.1) >= 0.95
     assert world.clearance(world.start.x, world.start.y) > 0.2
+
+
+def room(wall: int, free: int) -> np.ndarray:
+    """A 60 x 80 px room at two grey levels: walls 4 px thick round it and a pillar inside."""
+    pixels = np.full((60, 80), wall)
+    pixels[4:-4, 4:-4] = free
+    pixels[25:35, 30:45] = wall
+    return pixels
+
+
+def test_16_bit_maps_load_with_their_walls(tmp_path):
+    """The same plan as an 8-bit and a 16-bit image (walls at 20000 of 65535) gives the same free cells and walls,
+    as a plain plan and as a map_server map (PGM)."""
+    Image.fromarray(room(78, 255).astype(np.uint8)).save(tmp_path / "plan8.png")
+    Image.fromarray(room(20000, 65535).astype(np.uint16)).save(tmp_path / "plan16.png")
+    eight, sixteen = dungeon_occupancy(tmp_path / "plan8.png"), dungeon_occupancy(tmp_path / "plan16.png")
+    assert 0.5 < eight.free.mean() < 0.9
+    np.testing.assert_array_equal(sixteen.free, eight.free)
+    np.testing.assert_array_equal(load_world(tmp_path / "plan16.png").walls, load_world(tmp_path / "plan8.png").walls)
+    eight_bit_map = write_map_server(tmp_path, room(0, 254))
+    reference = map_server_occupancy(eight_bit_map).free
+    Image.fromarray(room(0, 65278).astype(np.uint16)).save(tmp_path / "map.pgm")  # 254 x 257
+    assert Image.open(tmp_path / "map.pgm").mode == "I"  # maxval 65535
+    np.testing.assert_array_equal(map_server_occupancy(eight_bit_map).free, reference)
+    Image.fromarray(room(20000, 65535).astype(np.uint16)).save(tmp_path / "map.pgm")
+    assert 0.5 < map_server_occupancy(eight_bit_map).free.mean() < 0.9
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def _png(width: int, height: int, before_image: bytes = b"", rows: bytes | None = None) -> bytes:
+    """An 8-bit grey PNG (white unless ``rows`` are given) with ``before_image`` chunks ahead of its pixels."""
+    pixels = zlib.compress(rows if rows is not None else (b"\0" + b"\xff" * width) * height)
+    return (b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)) +
+            before_image + _png_chunk(b"IDAT", pixels) + _png_chunk(b"IEND", b""))
+
+
+def _jpeg(path):
+    Image.fromarray(room(78, 255).astype(np.uint8)).save(path, format="JPEG")
+
+
+@pytest.mark.parametrize("name, content, expected", [
+    # a text chunk that inflates to 2 MB (Pillow stops at 1 MB; a real one could inflate to gigabytes)
+    ("ztxt.png", _png(40, 40, _png_chunk(b"zTXt", b"Comment\0\0" + zlib.compress(b"\0" * (2 << 20)))),
+     r"ztxt\.png: expected a PNG image with a valid header \(Pillow: Decompressed data too large"),
+    ("truncated.pgm", b"P5\n100 100\n255\n" + b"\xff" * 500,
+     r"truncated\.pgm: expected a PGM image whose pixel data is complete and valid \(Pillow: .*shorter than"),
+    ("maxval0.pgm", b"P5\n10 10\n0\n" + b"\0" * 100,
+     r"maxval0\.pgm: expected a PGM image with a valid header \(Pillow: maxval must be greater than 0"),
+    # 400 M pixels in its header, a few bytes of pixels: refused by the package's bound before decoding
+    ("huge.png", _png(20000, 20000, rows=b"\0" * 100),
+     r"huge\.png: expected an image of at most 25,000,000 pixels, got '20000 x 20000'"),
+    ("photo.png", _jpeg, r"photo\.png: expected a PNG or PGM image, not a JPEG image"),
+    ("x.png", "folder", r"x\.png: expected a map image, not a folder"),
+], ids=["ztxt-bomb", "truncated", "maxval-0", "20000x20000", "jpeg", "folder"])
+def test_broken_images_name_the_file_and_what_is_wrong(tmp_path, name, content, expected):
+    path = tmp_path / name
+    if content == "folder":
+        path.mkdir()
+    elif callable(content):
+        content(path)
+    else:
+        path.write_bytes(content)
+    with pytest.raises(WorldFileError, match=expected):
+        load_world(path)
+
+
+def test_images_and_world_files_that_are_devices_are_named_as_such(tmp_path, capsys):
+    from emmi_gym.cli import main
+
+    with pytest.raises(WorldFileError, match=r"/dev/zero: expected a world file, not a character device"):
+        load_world("/dev/zero")
+    (tmp_path / "map.pgm").symlink_to("/dev/zero")
+    (tmp_path / "map.yaml").write_text("image: map.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n")
+    with pytest.raises(WorldFileError, match=r"map\.pgm: expected a map image, not a character device"):
+        load_world(tmp_path / "map.yaml")
+    (tmp_path / "ztxt.png").write_bytes(_png(40, 40, _png_chunk(b"zTXt", b"C\0\0" + zlib.compress(b"\0" * (2 << 20)))))
+    with pytest.raises(SystemExit) as exit_info:
+        main(["record", str(tmp_path / "ztxt.png"), "--out", str(tmp_path / "run.log")])
+    assert exit_info.value.code == 2
+    assert f"{tmp_path / 'ztxt.png'}: expected a PNG image with a valid header" in capsys.readouterr().err
+
+
+def test_a_map_server_file_without_its_image_is_read_as_one(tmp_path):
+    path = tmp_path / "map.yaml"
+    path.write_text("resolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.2\n")
+    with pytest.raises(WorldFileError, match=r"map\.yaml: field 'image': expected a value \(the field is required\)"):
+        load_world(path)
+
+
+def test_environments_too_large_for_memory_are_refused_with_the_size_allowed(tmp_path):
+    """Maps within the filter's bound, but not with what the environment adds per cell (the oracle's map, the
+    observation): refused when the env is made (a fixed world) or draws the world (a map set), naming it."""
+    from emmi_gym.concurrency.threads import kernel_threads, set_kernel_threads
+    from emmi_gym.slam.occupancy import MapTooLarge
+
+    Image.new("L", (1500, 1500), 255).save(tmp_path / "plan.png")  # 2.25 M cells at 0.1 m
+    threads = kernel_threads()
+    try:
+        set_kernel_threads(1)  # each insertion thread adds its own working memory
+        expected = (r"plan\.png: 1500 x 1500 cells of 0\.1 m would take 4\.1 GiB in an environment with 300 "
+                    r"particles \(1964 bytes per cell: .*\), above the bound of 4 GiB; at most "
+                    f"{4 * 2**30 // 1964:,} cells")
+        with pytest.raises(MapTooLarge, match=expected):
+            gym.make("emmi_gym/Explore-v0", world=str(tmp_path / "plan.png"), particles=300)
+        (tmp_path / "set").mkdir()
+        (tmp_path / "plan.png").rename(tmp_path / "set" / "plan.png")
+        env = gym.make("emmi_gym/Explore-v0", world=str(tmp_path / "set"), particles=300)
+        with pytest.raises(MapTooLarge, match=expected.replace("plan", "set/plan")):
+            env.reset(seed=0)
+    finally:
+        set_kernel_threads(threads)
