@@ -249,7 +249,7 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
         assert variant.env_kwargs == dict(emmi.env_kwargs, reward=reward)
         assert variant.hyperparameters == emmi.hyperparameters and variant.total_timesteps == emmi.total_timesteps
     plans = load_agent_config("agents/ppo_plans_emmi.yaml")
-    assert plans.env_id == "emmi_gym/ExplorePlans-v0" and plans.hyperparameters == emmi.hyperparameters
+    assert plans.env_id == "emmi_gym/ExplorePlans-v0" and plans.policy == emmi.policy and plans.discount_unit == 100
     assert plans.eval_env_kwargs == dict(plans.env_kwargs, world="dungeon_maps/test")  # held-out plans
     assert load_agent_config("agents/dqn_emmi.yaml").algorithm == "DQN"
     assert load_agent_config("agents/sac_velocity_emmi.yaml").algorithm == "SAC"
