@@ -10,6 +10,41 @@ DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMM
                "experiment, train and evaluate agents, benchmark rewards, record and replay CARMEN logs.")
 
 
+def _integer(lo: int = 0, hi: int | None = None):
+    """An argparse type: a whole number in [lo, hi] (argparse names the option in its error)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < lo or (hi is not None and value > hi):
+            bounds = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+            raise argparse.ArgumentTypeError(f"expected an integer {bounds}, got {text!r}")
+        return value
+    return parse
+
+
+def _number(lo: float = 0.0, hi: float | None = None, unit: str = ""):
+    """An argparse type: a finite number above ``lo`` and at most ``hi``, in ``unit``."""
+    def parse(text: str) -> float:
+        import math
+
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > lo and (hi is None or value <= hi)):
+            bounds = f"in ({lo:g}, {hi:g}]" if hi is not None else f"above {lo:g}"
+            raise argparse.ArgumentTypeError(f"expected a finite number {bounds}{f' ({unit})' if unit else ''}, "
+                                             f"got {text!r}")
+        return value
+    return parse
+
+
+#: Seeds of numpy's generators, as the configurations bound them.
+_SEED = _integer(0, 2**32 - 1)
+
+
 def _cmd_metrics(args: argparse.Namespace) -> int:
     from .certainty.examples import fig5_contrast
 
@@ -29,8 +64,10 @@ def _cmd_metrics(args: argparse.Namespace) -> int:
 def _cmd_record(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from .inputs.paths import output_file
     from .world import LaserConfig, Simulator, drive_route, load_world, write_carmen
 
+    output_file(args.out)
     world = load_world(args.world)
     waypoints = []
     for name in args.route:
@@ -52,14 +89,18 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .formats.carmen import read_log
+    from .inputs.paths import output_folder
     from .slam import RBPFConfig
-    from .slam.replay import replay, write_outputs
+    from .slam.replay import replay, tum_problem, tum_warning, write_outputs
 
-    log = read_log(args.log, skip_bad_lines=args.skip_bad_lines, flaser_fov=math.radians(args.flaser_fov),
-                   progress=not args.quiet)
+    output_folder(args.out)  # before the run, which would otherwise be lost at its end
     options = dict(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,
                    matching_range=args.matching_range)
     config = RBPFConfig(**options) if args.preset is None else RBPFConfig.preset(args.preset, **options)
+    log = read_log(args.log, skip_bad_lines=args.skip_bad_lines, flaser_fov=math.radians(args.flaser_fov),
+                   progress=not args.quiet)
+    for sentence in log.timing:  # now, not after a run of minutes
+        print(f"{args.log}: warning: {sentence}", file=sys.stderr)
     try:
         result = replay(log, config, max_range=args.max_range, seed=args.seed, progress=not args.quiet,
                         every_scan=args.every_scan)
@@ -73,6 +114,10 @@ def _cmd_replay(args: argparse.Namespace) -> int:
           f"({args.particles} particles, {args.resolution} m cells)")
     for sentence in log.report():
         print(sentence)
+    if tum_problem(result) is not None:
+        print(f"no best_trajectory.tum: {tum_problem(result)}")
+    elif tum_warning(result) is not None:
+        print(f"best_trajectory.tum: {tum_warning(result)}")
     if result.scans_without_odometry:
         print(f"skipped {result.scans_without_odometry} scans that came before any odometry")
     times = [r.update_ms for r in result.rows[1:]] or [last.update_ms]
@@ -93,6 +138,7 @@ def _cmd_ab(args: argparse.Namespace) -> int:
     from .experiments import ABSettings, run_ab, write_report
     from .experiments.ab import check_world
     from .experiments.report import summary_rows, summary_table
+    from .inputs.paths import output_folder
     from .world import load_world
 
     for name in ("seeds", "particles", "max_decisions"):
@@ -101,6 +147,7 @@ def _cmd_ab(args: argparse.Namespace) -> int:
                              f"(intervals need two seeds), got {getattr(args, name)}")
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    output_folder(args.out)
     world = load_world(args.world)
     check_world(world)
     settings = ABSettings(world=args.world, particles=args.particles, max_decisions=args.max_decisions)
@@ -122,16 +169,19 @@ def _cmd_ab(args: argparse.Namespace) -> int:
 
 
 def _torch_threads_option(parser: argparse.ArgumentParser, default: str) -> None:
-    parser.add_argument("--torch-threads", type=int, default=None, metavar="N",
+    parser.add_argument("--torch-threads", type=_integer(1), default=None, metavar="N",
                         help=f"torch threads of the learner (default {default})")
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
+    from .inputs.paths import output_folder
     from .training.config import load_agent_config
     from .training.train import set_torch_threads, train, training_torch_threads
 
+    if args.out is not None:
+        output_folder(args.out)  # before the configuration's env is made
     config = load_agent_config(args.config)
     if args.timesteps is not None:
         if args.timesteps < 1:
@@ -142,7 +192,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.ray is not None:
         config = replace(config, vec_env="ray")
     set_torch_threads(training_torch_threads(config) if args.torch_threads is None else args.torch_threads)
-    out = args.out or f"runs/{Path(args.config).stem}_seed{config.seed}"
+    out = args.out or output_folder(f"runs/{Path(args.config).stem}_seed{config.seed}")
     print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
           f"{out}/tb)")
@@ -157,13 +207,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from .inputs.paths import output_folder
     from .training.episodes import summarise
     from .training.evaluate import evaluate_model, format_table
     from .training.train import load_run_config, set_torch_threads
 
     set_torch_threads(args.torch_threads)
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
+    if args.video is not None:
+        output_folder(args.video, "--video")
     model, name = _model_to_evaluate(args)
     config = load_run_config(model)  # loaded once: checking it makes the env
     if args.world is not None or args.baselines:
@@ -191,16 +242,10 @@ def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
     return Path(args.model), "agent"
 
 
-def _output_folder(path) -> Path:
-    """``path`` made now, before any work, so that a folder that cannot be written fails first."""
-    out = Path(path)
-    out.mkdir(parents=True, exist_ok=True)
-    return out
-
-
 def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:
     from .experiments.comparison import markdown_table
     from .experiments.report import write_csv
+    from .inputs.paths import output_folder
     from .policies import POLICY_NAMES
     from .training.episodes import summarise
     from .training.evaluate import OWN_WORLD, compare_model, format_table
@@ -211,7 +256,7 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
     if unknown:
         raise ValueError(f"--baselines: unknown {unknown}; choose from {list(POLICY_NAMES)}")
     world = OWN_WORLD if args.world is None else args.world
-    out = None if args.out is None else _output_folder(args.out)
+    out = None if args.out is None else output_folder(args.out)
     print(f"evaluating {name} on {config.env_id} ({config.eval_env_kwargs}"
           f"{'' if args.world is None else f', world {args.world}'}) beside {args.baselines or 'no baseline'}: "
           f"{args.episodes} episodes, seeds from {args.seed}")
@@ -235,12 +280,14 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     import time
 
     from .env.config import REWARDS
+    from .inputs.paths import output_folder
     from .training.benchmark import run_benchmark, write_benchmark
     from .training.config import load_agent_config
 
     bad = sorted(set(args.rewards) - set(REWARDS))
     if bad:
         raise ValueError(f"--rewards: unknown {bad}; choose from {list(REWARDS)}")
+    output_folder(args.out)
     config = load_agent_config(args.config)
     if args.timesteps is None:
         args.timesteps = config.total_timesteps
@@ -268,7 +315,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
 
 def _add_ab_options(parser: argparse.ArgumentParser, seeds: int, particles: int, out: str) -> None:
     parser.add_argument("--seeds", type=int, default=seeds, help=f"number of seeds (default {seeds})")
-    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--first-seed", type=_SEED, default=0)
     parser.add_argument("--world", default="loop_corridor",
                         help="built-in world or .yaml with places decision, target_a, target_b and a "
                              "to_decision route (default loop_corridor)")
@@ -292,8 +339,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     tr = sub.add_parser("train", help="train an SB3 agent from a configuration in agents/")
     tr.add_argument("config", help="agent configuration (.yaml), e.g. agents/ppo_emmi.yaml")
-    tr.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
-    tr.add_argument("--seed", type=int, default=None, help="override seed")
+    tr.add_argument("--timesteps", type=_integer(1), default=None, help="override total_timesteps")
+    tr.add_argument("--seed", type=_SEED, default=None, help="override seed")
     tr.add_argument("--out", default=None, help="run folder (default runs/<config>_seed<seed>)")
     tr.add_argument("--resume", action="store_true", help="continue from the run folder's latest checkpoint")
     tr.add_argument("--ray", nargs="?", const="env", default=None, metavar="ADDRESS",
@@ -309,15 +356,15 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("model", nargs="?", default=None,
                     help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
     ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
-    ev.add_argument("--episodes", type=int, default=10)
-    ev.add_argument("--seed", type=int, default=200_000, help="first episode seed (default 200000: held out)")
+    ev.add_argument("--episodes", type=_integer(1), default=10)
+    ev.add_argument("--seed", type=_SEED, default=200_000, help="first episode seed (default 200000: held out)")
     ev.add_argument("--world", default=None,
                     help="a world, map set, folder or glob to play on (a set's first maps, one episode each; "
                          "default: the run's evaluation env)")
     ev.add_argument("--baselines", nargs="*", default=[], metavar="POLICY",
                     help="scripted policies played on the same episodes, paired with the model, with 95%% "
                          "intervals (e.g. frontier active_loop_closing)")
-    ev.add_argument("--workers", type=int, default=None, help="worker processes with --world or --baselines "
+    ev.add_argument("--workers", type=_integer(1), default=None, help="worker processes with --world or --baselines "
                                                                 "(default one per core)")
     ev.add_argument("--out", default=None, metavar="DIR",
                     help="with --world or --baselines: write episodes.csv and summary.md here")
@@ -350,29 +397,30 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("world", help="built-in world name or a world .yaml file")
     record.add_argument("--route", nargs="+", default=["to_decision", "close_loop"],
                         help="route names of the world, driven one after the other (default: to_decision close_loop)")
-    record.add_argument("--seed", type=int, default=0)
-    record.add_argument("--beams", type=int, default=180)
-    record.add_argument("--max-range", type=float, default=8.0)
+    record.add_argument("--seed", type=_SEED, default=0)
+    record.add_argument("--beams", type=_integer(1), default=180)
+    record.add_argument("--max-range", type=_number(0.0, unit="m"), default=8.0)
     record.add_argument("--out", default="run.log")
     record.set_defaults(func=_cmd_record)
 
     rep = sub.add_parser("replay", help="run the RBPF and the certainty metrics on a CARMEN log")
     rep.add_argument("log", help="CARMEN log, plain or .gz (ODOM, FLASER, RAWLASER1, ROBOTLASER1, TRUEPOS lines)")
-    rep.add_argument("--particles", type=int, default=15)
-    rep.add_argument("--resolution", type=float, default=0.1, help="cell size, metres")
-    rep.add_argument("--max-range", type=float, default=None,
+    rep.add_argument("--particles", type=_integer(1), default=15)
+    rep.add_argument("--resolution", type=_number(0.0, unit="m"), default=0.1, help="cell size, metres")
+    rep.add_argument("--max-range", type=_number(0.0, unit="m"), default=None,
                      help="laser range limit, metres (default: from the log; FLASER logs need it)")
-    rep.add_argument("--seed", type=int, default=0)
+    rep.add_argument("--seed", type=_SEED, default=0)
     rep.add_argument("--skip-bad-lines", action="store_true", help="skip and count malformed lines")
     rep.add_argument("--every-scan", action="store_true",
                      help="make every scan an update (logs of keyframes; default: after 0.5 m or 0.3 rad)")
-    rep.add_argument("--flaser-fov", type=float, default=180.0, help="field of view of FLASER lines, degrees")
+    rep.add_argument("--flaser-fov", type=_number(0.0, 360.0, "degrees"), default=180.0,
+                     help="field of view of FLASER lines, degrees")
     rep.add_argument("--preset", default=None,
                      help="RBPF settings for a known kind of log (radish-noisy: the classic CARMEN logs with "
                           "shared/datasets' odometry noise); default: the simulator's")
-    rep.add_argument("--insertion-range", type=float, default=None,
+    rep.add_argument("--insertion-range", type=_number(0.0, unit="m"), default=None,
                      help="echoes beyond this only free cells up to it (default: the sensor's range)")
-    rep.add_argument("--matching-range", type=float, default=None,
+    rep.add_argument("--matching-range", type=_number(0.0, unit="m"), default=None,
                      help="beams beyond this are left out of matching and weights (default: the sensor's range)")
     rep.add_argument("--out", default="replay_out", help="folder for metrics.csv and the PNGs")
     rep.add_argument("--quiet", action="store_true", help="no progress bar")

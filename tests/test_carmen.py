@@ -204,7 +204,7 @@ def test_gzipped_logs_and_laser_offsets_from_param_lines(tmp_path):
     scan = log.of_type(carmen.LaserRecord)[0]
     np.testing.assert_array_equal(scan.laser_offset, [0.25, -0.05, 0.0])
     assert log.ignored_messages == {"PARAM": 1}
-    with pytest.raises(ValueError, match="is a folder"):
+    with pytest.raises(ValueError, match="expected a CARMEN log file, not a folder"):
         carmen.read_log(tmp_path)
     broken = tmp_path / "broken.log.gz"
     broken.write_bytes(path.read_bytes()[:40])
@@ -243,3 +243,119 @@ def test_help_is_plain_text(capsys):
         main(["--help"])
     out = capsys.readouterr().out
     assert "Active SLAM" in out and "``" not in out
+
+
+def flaser(x: float, t: float, x_text: str | None = None, sep: str = " ") -> str:
+    """A FLASER line at odometry x, time t (``x_text`` written in place of x; fields joined by ``sep``)."""
+    return sep.join(["FLASER", "180", SCAN.replace(" ", sep), "0", "0", "0", x_text or repr(x), "0", "0", repr(t),
+                     "host", repr(t)])
+
+
+def test_timestamps_that_go_backwards_or_never_change_are_reported_with_their_lines(tmp_path, capsys):
+    from emmi_gym.cli import main
+
+    backwards = carmen.parse_lines(["# header", *(flaser(0.5 * k, [1.0, 2.0, 1.5, 3.0][k]) for k in range(4))])
+    assert backwards.report() == ["laser timestamps go backwards 1 time(s), first at line 4 (1.5 after 2.0 at line 3): "
+                                  "times and rates from them are not trustworthy"]
+    frozen = [flaser(0.5 * k, 7.0) for k in range(5)]
+    assert carmen.parse_lines(frozen).report() == ["all 5 laser lines have the same timestamp 7.0 (lines 1 to 5): "
+                                                   "the log carries no time"]
+    assert carmen.parse_lines([flaser(0.5 * k, float(k // 2)) for k in range(4)]).report() == []  # rounded: fine
+    path = tmp_path / "frozen.log"
+    path.write_text("\n".join(frozen) + "\n")
+    assert main(["replay", str(path), "--max-range", "8", "--particles", "2", "--out", str(tmp_path / "out"),
+                 "--quiet"]) == 0
+    out, err = capsys.readouterr()
+    assert f"{path}: warning: all 5 laser lines have the same timestamp 7.0 (lines 1 to 5)" in err
+    assert "no best_trajectory.tum: all 5 updates have the same timestamp 7.0" in out  # no timed trajectory pretended
+    assert not (tmp_path / "out" / "best_trajectory.tum").exists() and (tmp_path / "out" / "metrics.csv").exists()
+
+
+@pytest.mark.parametrize("line, expected", [
+    (flaser(1.0, 2.0, "\u0661.\u0665"), r"x\.log:2: FLASER: the character U\+0661 \(ARABIC-INDIC DIGIT ONE\) at column"),
+    (flaser(1.0, 2.0, "\uff11"), r"x\.log:2: FLASER: the character U\+FF11 \(FULLWIDTH DIGIT ONE\)"),
+    (flaser(1.0, 2.0, sep="\u00a0"), r"x\.log:2: FLASER: the character U\+00A0 \(NO-BREAK SPACE\) at column 7"),
+    (flaser(1.0, 2.0, "1_0"), r"x\.log:2: FLASER: odometry pose\[0\]: expected a number, got '1_0'"),
+    ("ODOM 1 2 3 0 0 0 1\u00a0h 1", r"x\.log:2: ODOM: the character U\+00A0"),
+])
+def test_numbers_python_reads_but_logs_do_not_hold_are_malformed(line, expected):
+    with pytest.raises(carmen.CarmenFormatError, match=expected):
+        carmen.parse_lines([flaser(0.0, 1.0), line], "x.log")
+
+
+def _peak(action) -> float:
+    """Peak memory (MB) Python allocated while running ``action``."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        action()
+    finally:
+        peak = tracemalloc.get_traced_memory()[1] / 1e6
+        tracemalloc.stop()
+    return peak
+
+
+def test_streams_that_are_not_logs_are_refused_early_and_in_little_memory(tmp_path):
+    import gzip
+
+    def refused(path, expected):
+        def action():
+            with pytest.raises(ValueError, match=expected):
+                carmen.read_log(path, progress=True)
+        return action
+
+    assert _peak(refused("/dev/zero", r"/dev/zero: expected a CARMEN log file, not a character device")) < 10
+    zeros = tmp_path / "zeros.log.gz"
+    zeros.write_bytes(gzip.compress(b"\0" * (64 << 20)))  # 64 KB that unpack to 64 MB of NUL bytes
+    assert _peak(refused(zeros, r"zeros\.log\.gz: expected a CARMEN log, which is text, not binary data")) < 10
+    long_line = tmp_path / "long.log"
+    long_line.write_text(flaser(0.0, 1.0) + "\nFLASER " + "1 " * 5_000_000 + "\n")  # a 10 MB line
+    assert _peak(refused(long_line, r"long\.log:2: a line longer than 4,000,000 bytes")) < 12
+    newlines = tmp_path / "newlines.log.gz"
+    newlines.write_bytes(gzip.compress(b"# a comment\n" + b"\n" * 10**6))
+    assert _peak(refused(newlines, r"newlines\.log\.gz:100000: 100,000 lines in a row hold no message")) < 10
+
+
+def test_the_records_of_a_log_are_bounded_in_memory():
+    lines = [flaser(0.01 * (k % 2), float(k)) for k in range(1000)]
+    assert len(carmen.parse_lines(lines, max_bytes=2 * 10**6).records) == 1000  # 1940 bytes each
+    for skip in (False, True):
+        with pytest.raises(carmen.CarmenFormatError, match=r"x\.log:516: the records read so far take more than "
+                                                           r"0\.954 MiB of memory \(516 records\): a replay holds"):
+            carmen.parse_lines(lines, "x.log", max_bytes=10**6, skip_bad_lines=skip)
+
+
+def test_a_pose_far_off_asks_for_too_large_maps_not_an_overflow(tmp_path, capsys):
+    from emmi_gym.cli import main
+
+    path = tmp_path / "far.log"
+    path.write_text("\n".join([flaser(0.5 * k, float(k)) for k in range(3)] + [flaser(1e300, 3.0)]) + "\n")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["replay", str(path), "--max-range", "8", "--particles", "2", "--out", str(tmp_path / "out"), "--quiet"])
+    assert exit_info.value.code == 2
+    assert f"{path}: maps of " in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("options, expected", [
+    (["--max-range", "inf"], "argument --max-range: expected a finite number above 0 (m), got 'inf'"),
+    (["--max-range", "nan"], "argument --max-range: expected a finite number above 0 (m), got 'nan'"),
+    (["--max-range", "-5"], "argument --max-range: expected a finite number above 0 (m), got '-5'"),
+    (["--seed", "-1"], "argument --seed: expected an integer in [0, 4294967295], got '-1'"),
+    (["--flaser-fov", "0"], "argument --flaser-fov: expected a finite number in (0, 360] (degrees), got '0'"),
+    (["--out", "{file}/sub"], "--out {file}/sub: expected a folder that can be made and written to; {file} is a "
+                              "regular file, not a folder"),
+])
+def test_replay_options_name_themselves_before_any_work(tmp_path, capsys, options, expected):
+    from emmi_gym.cli import main
+
+    log, file = tmp_path / "run.log", tmp_path / "a_file"
+    log.write_text("\n".join(flaser(0.5 * k, float(k)) for k in range(3)) + "\n")
+    file.write_text("x")
+    options = [option.format(file=file) for option in options]
+    with pytest.raises(SystemExit) as exit_info:
+        main(["replay", str(log), "--max-range", "8", "--particles", "2", "--out", str(tmp_path / "out"), "--quiet",
+              *options])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert expected.format(file=file) in err and "run.log" not in err

@@ -5,10 +5,18 @@ gzipped, and the ``PARAM`` lines that give the front laser's mounting offset; ot
 message types (``SYNC``, ``NEFF``, other ``PARAM`` names, ...) are counted by type and
 passed over, ``#`` lines are comments. Every record must have exactly its fields, then
 the timestamp, hostname and logger timestamp: a line with extra tokens (two lines glued
-together), NUL bytes or bytes that are not UTF-8 is malformed, an error naming the file
-and line (or, with ``skip_bad_lines``, counted). Writes ``ODOM``, ``ROBOTLASER1`` and
-``TRUEPOS``. Numbers are written in Python's shortest round-trip form, so a log reads
-back bit for bit.
+together), NUL bytes, bytes that are not UTF-8, characters that are not ASCII (a digit or
+space of another script) or numbers Python reads but C does not (``1_000``) is malformed, an
+error naming the file and line (or, with ``skip_bad_lines``, counted). Laser lines whose
+timestamps go backwards, or are all the same, are reported with the line.
+
+Reading is bounded by what a log can hold, not by what a file can: lines are read at most
+:data:`MAX_LINE_BYTES` long (a stream without newlines is refused at that length, a binary
+one at its first line), :data:`MAX_IDLE_LINES` lines in a row that hold no message end the
+reading, and the records read may take at most :data:`MAX_LOG_BYTES` of memory.
+
+Writes ``ODOM``, ``ROBOTLASER1`` and ``TRUEPOS``. Numbers are written in Python's shortest
+round-trip form, so a log reads back bit for bit.
 
 This module is pure format: the simulator's recorder writes through it and the
 SLAM's replay reads through it, and neither knows about the other.
@@ -18,11 +26,15 @@ from __future__ import annotations
 
 import gzip
 import math
+import unicodedata
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable, TextIO
 
 import numpy as np
+
+from ..inputs.errors import FieldError
+from ..inputs.paths import input_file
 
 
 class CarmenFormatError(ValueError):
@@ -66,14 +78,20 @@ class TruePoseRecord:
     timestamp: float
 
 
+class CarmenFileError(FieldError):
+    """A log file cannot be read as one (a folder, a device, not text); names the file."""
+
+
 @dataclass
 class CarmenLog:
-    """The records of a log, in file order, with what was skipped (bad lines by message type)."""
+    """The records of a log, in file order, with what was skipped (bad lines by message type) and what is
+    wrong with its laser lines' timestamps (sentences naming the lines)."""
 
     records: list = field(default_factory=list)
     skipped_bad_lines: dict[str, int] = field(default_factory=dict)
     ignored_messages: dict[str, int] = field(default_factory=dict)
     scans_without_echo: int = 0  # laser lines whose every range is 0 (kept: the motion still counts)
+    timing: list[str] = field(default_factory=list)
 
     def of_type(self, cls) -> list:
         return [r for r in self.records if isinstance(r, cls)]
@@ -87,7 +105,7 @@ class CarmenLog:
             lines.append("ignored messages: " + _counts(self.ignored_messages))
         if self.scans_without_echo:
             lines.append(f"{self.scans_without_echo} scans have no echo (every range 0): they add nothing to the map")
-        return lines
+        return lines + self.timing
 
 
 def _counts(by_type: dict[str, int]) -> str:
@@ -103,6 +121,16 @@ LASER_OFFSET_PARAMS = {"robot_frontlaser_offset": 0, "robot_frontlaser_side_offs
 
 #: The most readings a laser line may hold (real scanners have at most a few thousand beams).
 MAX_READINGS = 100_000
+#: The longest line read, bytes: a laser line of :data:`MAX_READINGS` ranges and as many remissions, each
+#: written in at most 20 characters (a line of 10,000 beams takes a few hundred kB).
+MAX_LINE_BYTES = 2 * MAX_READINGS * 20
+#: Lines in a row that hold no message (empty, comments, unreadable ones skipped) after which a stream is not
+#: taken for a log (real logs have a header of a few dozen comments).
+MAX_IDLE_LINES = 100_000
+#: The most memory the records read may take (counted as :data:`RECORD_BYTES` per record plus its ranges):
+#: 270,000 scans of 180 beams, from a log of about 250 MB of text.
+MAX_LOG_BYTES = 512 * 2**20
+RECORD_BYTES = 500
 
 
 class _Fields:
@@ -118,6 +146,8 @@ class _Fields:
         token = self.tokens[self.pos]
         self.pos += 1
         try:
+            if "_" in token:  # Python reads 1_000 as a number; C, and the logs' writers, do not
+                raise ValueError
             value = float(token)
         except ValueError:
             raise ValueError(f"{what}: expected a number, got {token[:40]!r}") from None
@@ -231,8 +261,8 @@ _PARSERS = {"ODOM": _parse_odom, "RAWLASER1": _parse_rawlaser, "ROBOTLASER1": _p
             "TRUEPOS": _parse_truepos}
 
 
-def _tokens(line: str | bytes) -> list[str]:
-    """The whitespace-separated tokens of a line; ValueError for bytes that are not text."""
+def _text(line: str | bytes) -> str:
+    """A line as text; ValueError for bytes that are not text."""
     if isinstance(line, bytes):
         try:
             line = line.decode("utf-8")
@@ -240,89 +270,194 @@ def _tokens(line: str | bytes) -> list[str]:
             raise ValueError(f"bytes that are not UTF-8 text (byte {exc.start}); is this a CARMEN log?") from None
     if "\0" in line:
         raise ValueError(f"NUL bytes (at character {line.index(chr(0))}): a corrupt line")
-    return line.split()
+    return line
 
 
-def _parse_param(f: _Fields, offset: np.ndarray) -> bool:
-    """Fold a PARAM line into the front laser's ``offset`` (x, y, theta); False if it names another parameter."""
-    if len(f.tokens) < 2 or f.tokens[1] not in LASER_OFFSET_PARAMS:
-        return False
+def _check_ascii(line: str) -> None:
+    """ValueError naming the first character that is not ASCII (a record's fields are ASCII numbers and names;
+    Python would read other scripts' digits as numbers and their spaces as separators)."""
+    if not line.isascii():
+        column, char = next((k, c) for k, c in enumerate(line) if not c.isascii())
+        raise ValueError(f"the character U+{ord(char):04X} ({unicodedata.name(char, 'unnamed')}) at column "
+                         f"{column + 1}: expected ASCII digits, signs and spaces")
+
+
+def _parse_param(f: _Fields, offset: np.ndarray) -> None:
+    """Fold a PARAM line of :data:`LASER_OFFSET_PARAMS` into the front laser's ``offset`` (x, y, theta)."""
     f.pos = 2
     offset[LASER_OFFSET_PARAMS[f.tokens[1]]] = f.take(f.tokens[1])
-    return True
 
 
 def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: bool = False,
-                flaser_fov: float = math.pi) -> CarmenLog:
+                flaser_fov: float = math.pi, max_bytes: int = MAX_LOG_BYTES) -> CarmenLog:
     """Parse log lines; a malformed line raises :class:`CarmenFormatError` (or is counted by type, if skipping).
 
     ``flaser_fov`` (radians) is the field of view of FLASER lines, which do not carry it
     (180 degrees: the SICK LMS of the classic datasets). A front-laser offset from
-    ``PARAM`` lines applies to the FLASER lines after it.
+    ``PARAM`` lines applies to the FLASER lines after it. What is not a log is refused, whether
+    skipping or not: a line longer than :data:`MAX_LINE_BYTES`, :data:`MAX_IDLE_LINES` lines in a
+    row without a message, records taking more than ``max_bytes`` of memory.
     """
     if not 0.0 < flaser_fov <= 2.0 * math.pi:
         raise ValueError(f"flaser_fov must be in (0, 2 pi] radians, got {flaser_fov!r}")
     log = CarmenLog()
     offset = np.zeros(3)
+    held = idle = 0
+    times = _LaserTimes()
     for number, line in enumerate(lines, start=1):
+        if len(line) > MAX_LINE_BYTES:
+            raise CarmenFormatError(source, number, _too_long())
         try:
-            tokens = _tokens(line)
+            text = _text(line)
         except ValueError as exc:
             if not skip_bad_lines:
                 raise CarmenFormatError(source, number, str(exc)) from None
             log.skipped_bad_lines["unreadable"] = log.skipped_bad_lines.get("unreadable", 0) + 1
+            idle = _idle(idle, source, number)
             continue
+        tokens = text.split()
         if not tokens or tokens[0].startswith("#"):
+            idle = _idle(idle, source, number)
             continue
+        idle = 0
         kind = tokens[0]
         try:
             record = None
             if kind == "FLASER":
+                _check_ascii(text)
                 record = _parse_flaser(_Fields(tokens), flaser_fov)
                 if np.any(offset):
                     record = replace(record, laser_offset=offset.copy())
             elif kind in _PARSERS:
+                _check_ascii(text)
                 record = _PARSERS[kind](_Fields(tokens))
-            elif not (kind == "PARAM" and _parse_param(_Fields(tokens), offset)):
+            elif kind == "PARAM" and len(tokens) > 1 and tokens[1] in LASER_OFFSET_PARAMS:
+                _check_ascii(text)
+                _parse_param(_Fields(tokens), offset)
+            else:
                 log.ignored_messages[kind] = log.ignored_messages.get(kind, 0) + 1
-            if record is not None:
-                log.records.append(record)
-                if isinstance(record, LaserRecord) and not np.any(record.ranges > 0):
-                    log.scans_without_echo += 1
         except ValueError as exc:
             if not skip_bad_lines:
                 raise CarmenFormatError(source, number, f"{kind[:40]}: {exc}") from None
             log.skipped_bad_lines[kind] = log.skipped_bad_lines.get(kind, 0) + 1
+            continue
+        if record is None:
+            continue
+        log.records.append(record)
+        held += RECORD_BYTES + (record.ranges.nbytes if isinstance(record, LaserRecord) else 0)
+        if held > max_bytes:
+            raise CarmenFormatError(source, number, f"the records read so far take more than {max_bytes / 2**20:.3g} "
+                                    f"MiB of memory ({len(log.records):,} records): a replay holds the whole log; "
+                                    "split it")
+        if isinstance(record, LaserRecord):
+            times.add(record.timestamp, number)
+            if not np.any(record.ranges > 0):
+                log.scans_without_echo += 1
+    log.timing = times.report()
     return log
 
 
-def read_log(path, *, skip_bad_lines: bool = False, flaser_fov: float = math.pi, progress: bool = False) -> CarmenLog:
-    """Read a CARMEN log file, plain or gzipped (see :func:`parse_lines`); ``progress`` shows a bar of
-    the bytes read (a 250 MB log takes a while)."""
-    path = Path(path)
-    if path.is_dir():
-        raise ValueError(f"{path}: is a folder, expected a CARMEN log file")
+def _too_long() -> str:
+    return (f"a line longer than {MAX_LINE_BYTES:,} bytes (a laser line of {MAX_READINGS:,} readings takes less): "
+            "not a CARMEN log?")
+
+
+def _idle(idle: int, source: str, number: int) -> int:
+    """One more line without a message; :class:`CarmenFormatError` once there are :data:`MAX_IDLE_LINES`."""
+    if idle + 1 >= MAX_IDLE_LINES:
+        raise CarmenFormatError(source, number, f"{MAX_IDLE_LINES:,} lines in a row hold no message (empty lines, "
+                                "comments or unreadable lines): not a CARMEN log?")
+    return idle + 1
+
+
+class _LaserTimes:
+    """Whether the laser lines' timestamps go forward: the steps back (the first one's lines) and whether all
+    are the same."""
+
+    def __init__(self):
+        self.count = self.back = 0
+        self.first = self.last = None  # (timestamp, line)
+        self.first_back = None
+        self.varies = False
+
+    def add(self, timestamp: float, line: int) -> None:
+        self.count += 1
+        if self.last is None:
+            self.first = (timestamp, line)
+        else:
+            if timestamp < self.last[0]:
+                self.back += 1
+                self.first_back = self.first_back or (line, timestamp, self.last)
+            self.varies = self.varies or timestamp != self.first[0]
+        self.last = (timestamp, line)
+
+    def report(self) -> list[str]:
+        sentences = []
+        if self.back:
+            line, timestamp, (previous, previous_line) = self.first_back
+            sentences.append(f"laser timestamps go backwards {self.back} time(s), first at line {line} ({timestamp!r} "
+                             f"after {previous!r} at line {previous_line}): times and rates from them are not "
+                             "trustworthy")
+        if self.count > 1 and not self.varies:
+            sentences.append(f"all {self.count} laser lines have the same timestamp {self.first[0]!r} (lines "
+                             f"{self.first[1]} to {self.last[1]}): the log carries no time")
+        return sentences
+
+
+def read_log(path, *, skip_bad_lines: bool = False, flaser_fov: float = math.pi, progress: bool = False,
+             max_bytes: int = MAX_LOG_BYTES) -> CarmenLog:
+    """Read a CARMEN log file, plain or gzipped, or a pipe (see :func:`parse_lines`); ``progress`` shows a bar
+    of the bytes read (a 250 MB log takes a while)."""
+    path = input_file(path, "CARMEN log file", CarmenFileError, pipes=True)
     with path.open("rb") as raw:
-        gzipped = raw.read(2) == b"\x1f\x8b"
-        raw.seek(0)
-        fh = gzip.GzipFile(fileobj=raw) if gzipped else raw
-        lines = _with_progress(fh, raw, path) if progress else fh
+        head = raw.peek(2)[:2]
+        fh = gzip.GzipFile(fileobj=raw) if head == b"\x1f\x8b" else raw
+        lines = _log_lines(fh, str(path))
+        if progress:
+            lines = _with_progress(lines, raw, path)
         try:
-            return parse_lines(lines, str(path), skip_bad_lines=skip_bad_lines, flaser_fov=flaser_fov)
+            return parse_lines(lines, str(path), skip_bad_lines=skip_bad_lines, flaser_fov=flaser_fov,
+                               max_bytes=max_bytes)
         except (OSError, EOFError) as exc:  # a truncated or corrupt gzip stream
             raise ValueError(f"{path}: cannot be read as gzip ({exc})") from None
 
 
+def _log_lines(stream, source: str):
+    """The lines of a log stream, each read at most :data:`MAX_LINE_BYTES` long (a stream without newlines
+    takes no more memory than that); binary data is refused at its first line."""
+    number = 0
+    while True:
+        line = stream.readline(MAX_LINE_BYTES + 1)
+        if not line:
+            return
+        number += 1
+        if number == 1 and b"\0" in line:
+            nul = line.index(b"\0")
+            raise CarmenFileError(source, "", f"a CARMEN log, which is text, not binary data (NUL bytes from byte {nul})")
+        if len(line) > MAX_LINE_BYTES:
+            raise CarmenFormatError(source, number, _too_long())
+        yield line
+
+
 def _with_progress(lines, raw, path: Path, every: int = 2000):
-    """The lines, with a tqdm bar of the bytes of the file read so far (compressed ones for gzip)."""
+    """The lines, with a tqdm bar of the bytes of the file read so far (compressed ones for gzip; none for a
+    pipe, whose size is not known)."""
     from tqdm.auto import tqdm
 
-    with tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc=f"reading {path.name}") as bar:
+    size = path.stat().st_size if path.is_file() else None
+    with tqdm(total=size, unit="B", unit_scale=True, desc=f"reading {path.name}") as bar:
         for number, line in enumerate(lines):
             if number % every == 0:
-                bar.update(raw.tell() - bar.n)
+                bar.update(_position(raw) - bar.n)
             yield line
-        bar.update(raw.tell() - bar.n)
+        bar.update(_position(raw) - bar.n)
+
+
+def _position(raw) -> int:
+    try:
+        return raw.tell()
+    except OSError:  # a pipe
+        return 0
 
 
 # ----------------------------------------------------------------------------- writing

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -120,6 +121,10 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
     (for logs of keyframes, GMapping's ``-linearUpdate 0 -angularUpdate 0``). Readings
     at or beyond ``max_range`` are taken as no echo.
     """
+    if max_range is not None and not (isinstance(max_range, (int, float)) and 0 < max_range < math.inf):
+        raise ValueError(f"max_range must be a finite number of metres above 0, got {max_range!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     lasers = log.of_type(carmen.LaserRecord)
     if not lasers:
         raise ValueError("the log has no FLASER, RAWLASER1 or ROBOTLASER1 line")
@@ -160,9 +165,32 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
     return ReplayResult(rows, slam, np.array(times), np.array(odometry_at_update), truths, used, missing, log)
 
 
+def tum_problem(result: ReplayResult) -> str | None:
+    """Why the updates' timestamps cannot time a trajectory (they are all the same), or None."""
+    times = result.timestamps
+    if times.size > 1 and np.all(times == times[0]):
+        return f"all {times.size} updates have the same timestamp {float(times[0])!r}: the log carries no time"
+    return None
+
+
+def tum_warning(result: ReplayResult) -> str | None:
+    """What a TUM trajectory of ``result`` holds that its readers may not expect (timestamps that go
+    backwards, as the log's do), or None."""
+    steps = np.diff(result.timestamps)
+    if np.any(steps < 0):
+        k = int(np.argmax(steps < 0))
+        return (f"its timestamps are the log's, which go backwards {int(np.sum(steps < 0))} time(s) (first "
+                f"{float(result.timestamps[k + 1])!r} after {float(result.timestamps[k])!r}, update {k + 1})")
+    return None
+
+
 def write_tum(result: ReplayResult, path) -> Path:
     """The best particle's trajectory in the TUM format (``timestamp x y z qx qy qz qw``, one pose per
-    update, z = 0, the heading as a rotation about z), as the ``evo`` tools read it."""
+    update, z = 0, the heading as a rotation about z), as the ``evo`` tools read it; ValueError when the
+    timestamps cannot time it (see :func:`tum_problem`)."""
+    problem = tum_problem(result)
+    if problem is not None:
+        raise ValueError(f"no TUM trajectory: {problem}")
     path = Path(path)
     poses = result.slam.paths[result.slam.best]
     half = poses[:, 2] / 2.0
@@ -213,7 +241,7 @@ def write_map_png(result: ReplayResult, path, grid: np.ndarray | None = None, ti
 
 def write_outputs(result: ReplayResult, out_dir) -> dict[str, Path]:
     """Write ``metrics.csv``, ``metrics.png``, ``expected_map.png``, ``best_map.png`` and
-    ``best_trajectory.tum`` into ``out_dir``."""
+    ``best_trajectory.tum`` (unless :func:`tum_problem` says why not) into ``out_dir``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -248,5 +276,6 @@ def write_outputs(result: ReplayResult, out_dir) -> dict[str, Path]:
 
     write_map_png(result, paths["expected_map.png"], result.slam.expected_map(), "expected map (eq. 6)")
     write_map_png(result, paths["best_map.png"])
-    paths["best_trajectory.tum"] = write_tum(result, out / "best_trajectory.tum")
+    if tum_problem(result) is None:
+        paths["best_trajectory.tum"] = write_tum(result, out / "best_trajectory.tum")
     return paths
