@@ -248,7 +248,7 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
     from .inputs.paths import output_folder
     from .policies import POLICY_NAMES
     from .training.episodes import summarise
-    from .training.evaluate import OWN_WORLD, compare_model, format_table
+    from .training.evaluate import OWN_WORLD, compare_model, format_table, write_figures
 
     if args.video:
         raise ValueError("--video records the model alone: leave out --world and --baselines")
@@ -272,7 +272,8 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
     if out is not None:
         write_csv(out / "episodes.csv", rows)
         (out / "summary.md").write_text("\n\n".join([format_table(means), *tables]) + "\n")
-        print(f"\nwrote {out / 'episodes.csv'} and {out / 'summary.md'}")
+        figures = write_figures(rows, model, name, args.baselines, out)
+        print(f"\nwrote {', '.join(str(p) for p in [out / 'episodes.csv', out / 'summary.md', *figures])}")
     return 0
 
 
@@ -367,7 +368,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--workers", type=_integer(1), default=None, help="worker processes with --world or --baselines "
                                                                 "(default one per core)")
     ev.add_argument("--out", default=None, metavar="DIR",
-                    help="with --world or --baselines: write episodes.csv and summary.md here")
+                    help="with --world or --baselines: write episodes.csv, summary.md, front.png (map quality "
+                         "against robot time) and maps.png (one episode's maps, where the model went back) here")
     ev.add_argument("--quiet", action="store_true", help="no progress bar")
     ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
     _torch_threads_option(ev, "1: the env's kernels need the cores")

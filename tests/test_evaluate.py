@@ -38,6 +38,7 @@ def test_evaluate_plays_the_model_and_the_baselines_on_the_same_episodes(tiny_ag
                  "--workers", "1", "--quiet", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "agent - frontier: 2 pairs" in printed and "agent - random: 2 pairs" in printed
+    assert (out / "front.png").stat().st_size > 10_000 and (out / "maps.png").stat().st_size > 10_000
     rows = read_rows(out / "episodes.csv")
     assert sorted((r["policy"], r["seed"]) for r in rows) == sorted(
         (p, s) for p in ("agent", "frontier", "random") for s in ("7", "8"))

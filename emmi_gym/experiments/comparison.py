@@ -165,26 +165,61 @@ def markdown_table(rows: list[dict], policy: str, baseline: str, title: str) -> 
 
 
 def plot_pair(rows: list[dict], path) -> None:
-    """The expected maps of one (world, seed)'s episodes side by side, with the oracle map and true paths."""
+    """The expected maps of one (world, seed)'s episodes side by side, with the oracle map and true paths;
+    where a row kept its steps, the revisit targets it chose are marked (where it went back)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     panels = [(f"oracle map of the {rows[0]['policy']} episode (its scans at the true poses)", rows[0]["oracle_map"],
-               None)] + [
+               None, [])] + [
         (f"{r['policy']}: oracle acc. {r['oracle_accuracy']:.3f}, walls {r['wall_consistency']:.3f}, "
-         f"ATE {r['ate']:.2f} m", r["expected_map"], r["true_path"]) for r in rows]
+         f"ATE {r['ate']:.2f} m", r["expected_map"], r["true_path"],
+         [s["target_xy"] for s in r.get("steps", []) if s["target_kind"] == "revisit"]) for r in rows]
     fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.6))
-    for ax, (title, grid, path_xy) in zip(axes, panels):
+    for ax, (title, grid, path_xy, revisits) in zip(axes, panels):
         ax.imshow(1.0 - grid, cmap="gray", origin="lower", extent=rows[0]["extent"], vmin=0, vmax=1)
         if path_xy is not None:
             ax.plot(path_xy[:, 0], path_xy[:, 1], color="tab:red", lw=0.6)
+        if revisits:
+            xy = np.array(revisits)
+            ax.scatter(xy[:, 0], xy[:, 1], marker="x", s=60, color="tab:orange", lw=2,
+                       label=f"went back ({len(revisits)} revisit targets)", zorder=3)
+            ax.legend(loc="lower right", fontsize=7)
         ax.set_title(title, fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])
     fig.suptitle(f"{rows[0]['plan']}, seed {rows[0]['seed']}: the expected map at the end of each policy's episode",
                  fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_front(rows: list[dict], path, qualities=("oracle_accuracy", "ate"), time: str = "sim_steps") -> None:
+    """Map quality against robot time, one point per policy (its mean, with 95% intervals on both axes):
+    which policy maps better for the time it takes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    policies = list(dict.fromkeys(r["policy"] for r in rows))
+    fig, axes = plt.subplots(1, len(qualities), figsize=(5.2 * len(qualities), 4.2))
+    for ax, quality in zip(np.atleast_1d(axes), qualities):
+        for policy in policies:
+            mine = [r for r in rows if r["policy"] == policy]
+            tx, tlo, thi, _ = measure_interval([r[time] for r in mine], time)
+            qy, qlo, qhi, _ = measure_interval([r[quality] for r in mine], quality)
+            ax.errorbar(tx, qy, xerr=[[tx - tlo], [thi - tx]], yerr=[[qy - qlo], [qhi - qy]], fmt="o", capsize=3,
+                        label=policy)
+        ax.set_xlabel(f"robot time: {SCORES.get(time, time)}")
+        ax.set_ylabel(SCORES.get(quality, quality) + (" (lower is better)" if quality in LOWER_IS_BETTER else ""))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"map quality against robot time, {len(rows) // max(len(policies), 1)} episodes per policy "
+                 f"(mean, 95% intervals)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

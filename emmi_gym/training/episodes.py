@@ -53,19 +53,23 @@ def run_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
     fraction of waypoint decisions that chose a revisit target (``info["target_kind"]``; NaN
     in velocity mode): how much of its time the policy spent going back to close loops. With
     ``keep_steps``, ``steps`` lists each step's ``info["reward_components"]`` with its ``duration`` in
-    simulator steps (what any reward variant, time cost and discount would have paid).
+    simulator steps (what any reward variant, time cost and discount would have paid), the kind of
+    target it chose and where that target was (``target_xy``, in the map's frame).
     """
     observation, _ = env.reset(seed=seed)
     actor.reset(seed)
     total, steps, revisits, terminated, truncated = 0.0, 0, 0, False, False
     kept = []
     while not (terminated or truncated):
-        observation, reward, terminated, truncated, info = env.step(actor(env, observation))
+        action = actor(env, observation)
+        target = _target_of(env, action) if keep_steps else None
+        observation, reward, terminated, truncated, info = env.step(action)
         total += float(reward)
         steps += 1
         revisits += info.get("target_kind") == "revisit"
         if keep_steps:
-            kept.append({**info["reward_components"], "duration": info["sim_steps_this_step"]})
+            kept.append({**info["reward_components"], "duration": info["sim_steps_this_step"],
+                         "target_kind": info.get("target_kind"), "target_xy": target})
     row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in GROUND_TRUTH},
            "reached_target": float(terminated),
            "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan,
@@ -75,6 +79,16 @@ def run_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
     if keep_steps:
         row["steps"] = kept
     return row
+
+
+def _target_of(env, action) -> tuple[float, float] | None:
+    """Where the waypoint ``action`` sends the robot (in the map's frame), or None (an empty slot,
+    velocity actions)."""
+    targets = getattr(env.unwrapped, "targets", [])
+    if not targets or np.ndim(action) != 0 or not 0 <= int(action) < len(targets) or targets[int(action)] is None:
+        return None
+    target = targets[int(action)]
+    return float(target.x), float(target.y)
 
 
 def run_episodes(env, actor, seeds) -> list[dict]:

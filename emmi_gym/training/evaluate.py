@@ -45,23 +45,55 @@ def load_model(model_path, config=None):
     return algorithm_class(config.algorithm).load(model_path, device="cpu"), config
 
 
+def comparison_settings(config):
+    """The env of a run's held-out evaluations as :class:`~emmi_gym.experiments.comparison.ComparisonSettings`
+    (every keyword but the world, set per episode), and that env's own world."""
+    import gymnasium as gym
+
+    from ..experiments.comparison import ComparisonSettings
+
+    options = dict(config.eval_env_kwargs)
+    own_world = options.pop("world", gym.spec(config.env_id).kwargs.get("world"))
+    return ComparisonSettings(config.env_id, options), own_world
+
+
 def compare_model(model_path, name: str = "agent", world=OWN_WORLD, episodes: int = 10, seed: int = EVALUATION_SEED,
                   baselines=(), *, workers: int | None = None, progress: bool = True) -> list[dict]:
     """The model and the scripted ``baselines`` on the same ``episodes`` (world, seed) pairs, paired, in its
     run's evaluation env (:func:`emmi_gym.experiments.comparison.compare_on`): ``world`` a world, map
     set, folder or glob (default: the evaluation env's own world), its maps or seeds taken as
     :func:`~emmi_gym.experiments.comparison.episodes_on` says. Rows carry ``name`` for the model."""
-    import gymnasium as gym
+    from ..experiments.comparison import TrainedAgent, compare_on, episodes_on
 
-    from ..experiments.comparison import ComparisonSettings, TrainedAgent, compare_on, episodes_on
-
-    config = load_run_config(Path(model_path))
-    options = dict(config.eval_env_kwargs)
-    own_world = options.pop("world", gym.spec(config.env_id).kwargs.get("world"))
+    settings, own_world = comparison_settings(load_run_config(Path(model_path)))
     pairs = episodes_on(own_world if world is OWN_WORLD else world, episodes, seed)
-    policies = [TrainedAgent(str(model_path), name), *baselines]
-    return compare_on(pairs, policies, ComparisonSettings(config.env_id, options), workers=workers,
+    return compare_on(pairs, [TrainedAgent(str(model_path), name), *baselines], settings, workers=workers,
                       progress=progress)
+
+
+def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> list[Path]:
+    """``front.png`` (map quality against robot time, a point per policy) and, beside a baseline,
+    ``maps.png``: the episode where the model's accuracy against the oracle map differs most from the
+    first baseline's (among those where it went back, if any), both maps with where it went back."""
+    from ..experiments.comparison import TrainedAgent, paired, plot_front, plot_pair, run_episode
+
+    out = Path(out)
+    plot_front(rows, out / "front.png")
+    written = [out / "front.png"]
+    if baselines:
+        mine = {(r["world"], r["seed"]): r for r in rows if r["policy"] == name}
+        gaps = dict(zip(((w, s) for (w, s, p) in ((r["world"], r["seed"], r["policy"]) for r in rows)
+                         if p == baselines[0] and (w, s) in mine),
+                        paired(rows, "oracle_accuracy", name, baselines[0])))
+        went_back = [key for key in gaps if mine[key].get("revisit_share", 0) > 0] or list(gaps)
+        world, seed = max(went_back, key=lambda key: abs(gaps[key]))
+        settings, _ = comparison_settings(load_run_config(Path(model_path)))
+        world = None if world == "None" else world
+        episodes = [run_episode(world, seed, policy, settings, keep_maps=True, keep_steps=True)
+                    for policy in (TrainedAgent(str(model_path), name), baselines[0])]
+        plot_pair(episodes, out / "maps.png")
+        written.append(out / "maps.png")
+    return written
 
 
 def format_table(rows: list[dict], columns=None) -> str:
