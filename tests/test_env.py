@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from helpers import assert_same
 
 import emmi_gym
 from emmi_gym.env import ENV_IDS
@@ -22,21 +23,6 @@ SMALL = dict(particles=5)  # fewer particles: the behaviour under test does not 
 
 
 frontier_action = FrontierPolicy()  # the nearest frontier (slot 0), else the first valid slot
-
-
-def assert_same(a, b):
-    if isinstance(a, dict):
-        assert a.keys() == b.keys()
-        for key in a:
-            assert_same(a[key], b[key])
-    elif isinstance(a, (list, tuple)):
-        assert len(a) == len(b)
-        for x, y in zip(a, b):
-            assert_same(x, y)
-    elif isinstance(a, np.ndarray):
-        np.testing.assert_array_equal(a, b)
-    else:
-        assert a == b or (a != a and b != b)  # NaN equals NaN here
 
 
 # ------------------------------------------------------------------ registration and API

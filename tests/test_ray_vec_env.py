@@ -4,6 +4,7 @@ import time
 
 import numpy as np
 import pytest
+from helpers import assert_same
 
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.train import make_vec_env, train
@@ -40,19 +41,6 @@ def play(vec_env: str, steps: int = 90) -> list:
         seen += [observation, reward, done, [info.get("terminal_observation") for info in infos]]
     env.close()
     return seen
-
-
-def assert_same(a, b) -> None:
-    if isinstance(a, dict):
-        assert a.keys() == b.keys()
-        for key in a:
-            assert_same(a[key], b[key])
-    elif isinstance(a, (list, tuple)):
-        assert len(a) == len(b)
-        for x, y in zip(a, b):
-            assert_same(x, y)
-    else:
-        np.testing.assert_array_equal(a, b)
 
 
 def test_ray_actors_give_the_same_episodes_as_subprocesses(local_ray):
