@@ -156,7 +156,8 @@ def markdown(results: list[dict], front: list[dict], title: str) -> str:
                                                    for k, v in row.items() if k != "policy"]) + " |" for row in front]
     columns = list(results[0])
     lines += ["", "| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
-    lines += ["| " + " | ".join(_format(row[c]) for c in columns) + " |" for row in results]
+    lines += ["| " + " | ".join(f"{row[c]:g}" if c == "time_cost" else _format(row[c]) for c in columns) + " |"
+              for row in results]
     return "\n".join(lines)
 
 
