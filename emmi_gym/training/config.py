@@ -189,7 +189,99 @@ def _hyperparameter_check(name: str, default) -> Check | None:
     return None  # strings, tuples, None defaults: SB3 checks what it accepts
 
 
-def _check_hyperparameters(source: str, algorithm: str, hyper: dict) -> dict:
+#: What ``policy_kwargs`` may set from a file, by name (classes named by a word: see :func:`sb3_policy_kwargs`;
+#: a key a policy class takes but not listed here is refused, as are keys it does not take).
+ACTIVATIONS = ("ReLU", "Tanh", "ELU", "LeakyReLU", "GELU", "SiLU", "Sigmoid")
+OPTIMIZERS = ("Adam", "AdamW", "RMSprop", "SGD")
+FEATURE_EXTRACTORS = ("NatureCNN", "CombinedExtractor", "FlattenExtractor")
+#: The widest and deepest network ``net_arch`` may ask for (a few million weights).
+MAX_LAYER_WIDTH, MAX_LAYERS = 1024, 8
+_LAYER = Integer(1, MAX_LAYER_WIDTH, "units of a layer")
+_POLICY_KWARGS = {
+    "activation_fn": Choice(ACTIVATIONS), "optimizer_class": Choice(OPTIMIZERS),
+    "features_extractor_class": Choice(FEATURE_EXTRACTORS),
+    "ortho_init": Boolean(), "full_std": Boolean(), "use_expln": Boolean(), "normalize_images": Boolean(),
+    "share_features_extractor": Boolean(), "log_std_init": Real(-20.0, 20.0), "clip_mean": Real(0.0, 100.0, open_lo=True),
+    "n_critics": Integer(1, 16),
+}
+_NESTED_KWARGS = {
+    "features_extractor_kwargs": {"features_dim": _LAYER, "cnn_output_dim": _LAYER, "normalized_image": Boolean()},
+    "optimizer_kwargs": {"eps": Real(0.0, 1.0, open_lo=True), "weight_decay": Real(0.0, 1.0),
+                         "alpha": Real(0.0, 1.0), "momentum": Real(0.0, 1.0), "amsgrad": Boolean(),
+                         "centered": Boolean(), "nesterov": Boolean()},
+}
+#: The keys of a ``net_arch`` mapping (separate networks) each algorithm's policies take; DQN takes a list only.
+_NET_ARCH_KEYS = {"PPO": ("pi", "vf"), "A2C": ("pi", "vf"), "MaskablePPO": ("pi", "vf"), "SAC": ("pi", "qf"),
+                  "DQN": ()}
+
+
+def _policy_class(algorithm: str, policy: str):
+    if policy == "TargetScoringPolicy":
+        from sb3_contrib.common.maskable.policies import MaskableMultiInputActorCriticPolicy
+
+        return MaskableMultiInputActorCriticPolicy
+    return algorithm_class(algorithm).policy_aliases[policy]
+
+
+def _check_policy_kwargs(source: str, algorithm: str, policy: str, value) -> dict:
+    """``policy_kwargs`` checked key by key against what the policy class takes (and what SB3 would only find
+    wrong when it builds the network, or not at all: a negative layer width, a string for a class)."""
+    label = "hyperparameters.policy_kwargs"
+    kwargs = check_value(value, Maybe(Mapping()), source, label, AgentConfigError)
+    if kwargs is None:
+        return None
+    fixed = ()
+    if policy == "TargetScoringPolicy":
+        from .target_policy import FIXED_KWARGS as fixed
+    takes = set(inspect.signature(_policy_class(algorithm, policy).__init__).parameters)
+    allowed = [k for k in ("net_arch", *_POLICY_KWARGS, *_NESTED_KWARGS) if k in takes and k not in fixed]
+    checked = {}
+    for key, item in kwargs.items():
+        field_name = f"{label}.{key}"
+        if key not in allowed:
+            raise AgentConfigError(source, field_name, f"one of the keys {policy} of {algorithm} takes from a "
+                                   f"configuration: {allowed}")
+        if key == "net_arch":
+            checked[key] = _check_net_arch(source, field_name, algorithm, item)
+        elif key in _NESTED_KWARGS:
+            inner = check_value(item, Mapping(), source, field_name, AgentConfigError)
+            unknown = sorted(set(map(str, inner)) - set(_NESTED_KWARGS[key]))
+            if unknown:
+                raise AgentConfigError(source, f"{field_name}.{unknown[0]}", f"one of {list(_NESTED_KWARGS[key])}")
+            checked[key] = {name: check_value(sub, _NESTED_KWARGS[key][name], source, f"{field_name}.{name}",
+                                              AgentConfigError) for name, sub in inner.items()}
+        else:
+            checked[key] = check_value(item, _POLICY_KWARGS[key], source, field_name, AgentConfigError)
+    return checked
+
+
+def _check_net_arch(source: str, field_name: str, algorithm: str, value):
+    """A list of layer widths, or (where the algorithm's policies take one) a mapping of such lists by network."""
+    def layers(item, name):
+        if not isinstance(item, list) or len(item) > MAX_LAYERS:
+            raise AgentConfigError(source, name, f"a list of at most {MAX_LAYERS} layer widths", item)
+        return [check_value(width, _LAYER, source, f"{name}[{k}]", AgentConfigError) for k, width in enumerate(item)]
+
+    keys = _NET_ARCH_KEYS[algorithm]
+    if isinstance(value, dict) and keys:
+        unknown = sorted(set(map(str, value)) - set(keys))
+        if unknown:
+            raise AgentConfigError(source, f"{field_name}.{unknown[0]}", f"one of the networks {list(keys)}")
+        return {key: layers(item, f"{field_name}.{key}") for key, item in value.items()}
+    return layers(value, field_name)
+
+
+def sb3_policy_kwargs(policy_kwargs: dict) -> dict:
+    """Checked ``policy_kwargs`` as SB3 takes them: the classes named by a word (``activation_fn: ReLU``) as
+    the classes (``torch.nn.ReLU``)."""
+    import torch
+    from stable_baselines3.common import torch_layers
+
+    modules = {"activation_fn": torch.nn, "optimizer_class": torch.optim, "features_extractor_class": torch_layers}
+    return {key: getattr(modules[key], value) if key in modules else value for key, value in policy_kwargs.items()}
+
+
+def _check_hyperparameters(source: str, algorithm: str, hyper: dict, policy: str = "MultiInputPolicy") -> dict:
     reserved = ("self", "policy", "env", "seed", "tensorboard_log", "verbose", "device", "_init_setup_model")
     parameters = {name: p for name, p in inspect.signature(algorithm_class(algorithm).__init__).parameters.items()
                   if name not in reserved}
@@ -198,6 +290,9 @@ def _check_hyperparameters(source: str, algorithm: str, hyper: dict) -> dict:
         if name not in parameters:
             raise AgentConfigError(source, f"hyperparameters.{name}", f"a keyword of {algorithm}: one of "
                                    f"{list(parameters)}")
+        if name == "policy_kwargs":
+            checked[name] = _check_policy_kwargs(source, algorithm, policy, value)
+            continue
         check = _hyperparameter_check(name, parameters[name].default)
         checked[name] = value if check is None else check_value(value, check, source, f"hyperparameters.{name}",
                                                                 AgentConfigError)
@@ -271,7 +366,7 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
     policy = field("policy", Choice(POLICIES), "MultiInputPolicy")
     if policy == "TargetScoringPolicy" and algorithm != "MaskablePPO":
         raise AgentConfigError(source, "policy", "TargetScoringPolicy only with algorithm MaskablePPO", policy)
-    hyper = _check_hyperparameters(source, algorithm, field("hyperparameters", Maybe(Mapping())) or {})
+    hyper = _check_hyperparameters(source, algorithm, field("hyperparameters", Maybe(Mapping())) or {}, policy)
     discount_unit = field("discount_unit", Maybe(Integer(1, 10**6)))
     if discount_unit is not None:
         from .semi_markov import SUPPORTED

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .config import algorithm_class
 from .episodes import ModelActor, run_episodes
+from .model_files import load_model_file
 from .train import load_run_config, make_env
 
 #: ``world`` of :func:`compare_model` that means the run's evaluation env's own world.
@@ -42,7 +42,7 @@ def load_model(model_path, config=None):
     if not model_path.is_file():
         raise FileNotFoundError(f"no model at {model_path}")
     config = config or load_run_config(model_path)
-    return algorithm_class(config.algorithm).load(model_path, device="cpu"), config
+    return load_model_file(model_path, config.algorithm, device="cpu"), config
 
 
 def comparison_settings(config):

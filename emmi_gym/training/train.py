@@ -32,8 +32,9 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from ..concurrency.parallel import one_kernel_thread
 from .callbacks import eval_callback_class
-from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument
+from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument, sb3_policy_kwargs
 from .loop_order import LoopOrderInfo
+from .model_files import load_model_file
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
@@ -313,12 +314,14 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True)
     cls = algorithm_class(config.algorithm)
     if start is not None:
-        model = cls.load(start, env=env, tensorboard_log=str(run_dir / "tb"))
+        model = load_model_file(start, config.algorithm, env=env, tensorboard_log=str(run_dir / "tb"))
         buffer = start.with_name(start.name.replace("model_", "model_replay_buffer_").replace(".zip", ".pkl"))
         if config.algorithm in OFF_POLICY and buffer.exists():
             model.load_replay_buffer(buffer)
     else:
         hyperparameters = copy.deepcopy(config.hyperparameters)  # SB3 adds to policy_kwargs in place
+        if hyperparameters.get("policy_kwargs"):
+            hyperparameters["policy_kwargs"] = sb3_policy_kwargs(hyperparameters["policy_kwargs"])
         if config.discount_unit is not None:
             hyperparameters["rollout_buffer_class"] = rollout_buffer_class(
                 config.algorithm, isinstance(env.observation_space, gym.spaces.Dict))

@@ -1,0 +1,92 @@
+"""Model files (Stable-Baselines3 ``.zip``): checked before SB3 unpacks them, loaded with errors that name them.
+
+SB3 reads a model's members whole: a ``data`` member that deflates to gigabytes from a few MB
+takes that much memory before anything is checked, a zip without ``data`` ends in an
+``AssertionError``, and a model of another algorithm than its run's configuration says fails
+deep inside the policy's constructor. Here the members' sizes (as the zip declares them: Python's
+zipfile never inflates a member past its declared size) are bounded, ``data`` must be there,
+and the policy class it names must be one of the configured algorithm's.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+
+from ..inputs.errors import FieldError
+from ..inputs.paths import input_file
+from .config import ALGORITHMS, algorithm_class
+
+#: The most a model's members may take unpacked, and its ``data`` member (the hyperparameters and spaces as
+#: JSON; a few hundred kB); the shipped agent takes 2 MB in all.
+MAX_MODEL_BYTES = 256 * 2**20
+MAX_DATA_BYTES = 16 * 2**20
+MAX_MEMBERS = 64
+
+
+class ModelFileError(FieldError):
+    """A model file is not one that its run's configuration can load; names the file and what is wrong."""
+
+
+def _policy_modules(algorithm: str) -> set[str]:
+    """The modules of the policy classes a model of ``algorithm`` may have been saved with."""
+    modules = {cls.__module__ for cls in algorithm_class(algorithm).policy_aliases.values()}
+    if algorithm == "MaskablePPO":
+        modules.add("emmi_gym.training.target_policy")
+    return modules
+
+
+def check_model_file(path, algorithm: str) -> Path:
+    """``path`` checked to be a model that ``algorithm`` (one of :data:`ALGORITHMS`) can load, reading only its
+    zip directory and its ``data`` member (bounded): :class:`ModelFileError` naming the file otherwise."""
+    path = input_file(path, "model file", ModelFileError)
+    where = str(path)
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = archive.infolist()
+            if len(members) > MAX_MEMBERS:
+                raise ModelFileError(where, "", f"a model zip of at most {MAX_MEMBERS} members", f"{len(members)}")
+            total = sum(member.file_size for member in members)
+            if total > MAX_MODEL_BYTES:
+                largest = max(members, key=lambda member: member.file_size)
+                raise ModelFileError(where, "", f"a model of at most {MAX_MODEL_BYTES // 2**20} MB unpacked; its "
+                                     f"members would unpack to {total / 2**20:,.0f} MB ({largest.filename!r}: "
+                                     f"{largest.file_size / 2**20:,.0f} MB)")
+            names = {member.filename: member for member in members}
+            if "data" not in names:
+                raise ModelFileError(where, "", "a Stable-Baselines3 model, which holds a 'data' member (this zip "
+                                     f"holds {sorted(names)[:8]})")
+            if names["data"].file_size > MAX_DATA_BYTES:
+                raise ModelFileError(where, "", f"a 'data' member of at most {MAX_DATA_BYTES // 2**20} MB",
+                                     f"{names['data'].file_size / 2**20:,.0f} MB")
+            data = json.loads(archive.read("data"))
+    except zipfile.BadZipFile:
+        raise ModelFileError(where, "", "a model .zip written by 'emmi-gym train' (this is not a zip file)") from None
+    except (ValueError, UnicodeDecodeError) as exc:  # JSON (and its decoding) errors are ValueErrors
+        if isinstance(exc, ModelFileError):
+            raise
+        raise ModelFileError(where, "", f"a 'data' member of JSON, as Stable-Baselines3 writes it ({exc})") from None
+    except (OSError, EOFError, zipfile.LargeZipFile, NotImplementedError) as exc:
+        raise ModelFileError(where, "", f"a zip file that can be read ({exc})") from None
+    module = data.get("policy_class", {}).get("__module__") if isinstance(data, dict) else None
+    if not isinstance(module, str):
+        raise ModelFileError(where, "", "a Stable-Baselines3 model, whose data names its policy class")
+    if module not in _policy_modules(algorithm):
+        saved = [name for name in ALGORITHMS if module in _policy_modules(name)]
+        raise ModelFileError(where, "", f"a {algorithm} model, as its run's configuration says (algorithm: "
+                             f"{algorithm}); its policy comes from {module}, "
+                             f"{'a ' + ' or '.join(saved) + ' policy' if saved else 'no algorithm this package runs'}")
+    return path
+
+
+def load_model_file(path, algorithm: str, **kwargs):
+    """The SB3 model in ``path`` as ``algorithm``, after :func:`check_model_file`; ``kwargs`` go to SB3's
+    ``load``. What SB3 still finds wrong is a :class:`ModelFileError` naming the file."""
+    path = check_model_file(path, algorithm)
+    try:
+        return algorithm_class(algorithm).load(path, **kwargs)
+    except (ValueError, TypeError, KeyError, AssertionError, AttributeError, RuntimeError, EOFError,
+            zipfile.BadZipFile) as exc:
+        raise ModelFileError(str(path), "", f"a {algorithm} model that Stable-Baselines3 can load "
+                             f"({type(exc).__name__}: {str(exc)[:200]})") from None
