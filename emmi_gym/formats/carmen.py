@@ -420,6 +420,8 @@ def read_log(path, *, skip_bad_lines: bool = False, flaser_fov: float = math.pi,
                                max_bytes=max_bytes)
         except (OSError, EOFError) as exc:  # a truncated or corrupt gzip stream
             raise ValueError(f"{path}: cannot be read as gzip ({exc})") from None
+        finally:
+            lines.close()  # ends the progress bar's line now, not after the error's message
 
 
 def _log_lines(stream, source: str):
