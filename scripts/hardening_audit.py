@@ -1,25 +1,37 @@
-"""Replay the hardening audit (issue 14): each hostile or broken input, and what happens to it now.
+"""Replay the hardening audits: each hostile or broken input, and what happens to it now.
 
-Prints a markdown table: case -> outcome (the error's first line, or what was returned), the
-seconds it took and the peak memory Python allocated for it (tracemalloc). Every case runs in
-this process under a time limit of its own; nothing should come near it.
+Prints two markdown tables. The first: case -> outcome (the error's first line, or what was
+returned), the seconds it took and the peak memory Python allocated for it (tracemalloc); every
+case runs in this process under a time limit of its own. The second: the inputs of the second
+audit (floor-plan images, map_server files, map sets, gzipped logs, configuration chains, model
+files), each given to the command or function it targets in a process of its own, killed after
+60 s or above 3 GB: its exit status, the last line it printed (the error, or the last progress
+bar if it was killed), the seconds and the process's peak resident memory. Every probe should
+end within the minute (or show progress) under 1 GB, with a message naming the file, field or
+option.
 
-    python scripts/hardening_audit.py            # about a minute
-    python scripts/hardening_audit.py --train    # also Ctrl-C / kill -INT of a training run (~1 min more)
+    python scripts/hardening_audit.py                  # about five minutes
+    python scripts/hardening_audit.py --probes-only    # the second table (the inputs take ~30 s to make)
+    python scripts/hardening_audit.py --train          # also Ctrl-C / kill -INT of a training run (~1 min more)
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import inspect
+import json
 import os
 import pickle
 import signal
+import struct
 import subprocess
 import sys
 import tempfile
 import time
 import tracemalloc
+import zipfile
+import zlib
 from pathlib import Path
 
 import gymnasium as gym
@@ -219,16 +231,332 @@ def training_interrupts(folder: Path) -> list[tuple[str, str, float]]:
     return rows
 
 
+# --------------------------------------------------------------------------- probes in a subprocess
+PROBE_LIMIT = 60.0
+#: A probe is killed when its memory passes this (the criterion is 1 GB; the cap keeps the machine usable).
+MEMORY_CAP_MB = 3000
+GIB = 2**30
+
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def _deflate_repeated(chunk: bytes, times: int, wbits: int = -15) -> bytes:
+    """Deflate data of ``chunk`` repeated ``times`` times, compressed once: each copy is a block after a full
+    flush (no reference to the copy before), so the copies can simply be concatenated."""
+    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
+    block = compressor.compress(chunk) + compressor.flush(zlib.Z_FULL_FLUSH)
+    body = block * times + zlib.compressobj(9, zlib.DEFLATED, -15).flush()  # an empty final block
+    if wbits == -15:
+        return body
+    check = 1  # zlib stream: header, raw deflate, Adler-32 of the data
+    for _ in range(times):
+        check = zlib.adler32(chunk, check)
+    return b"\x78\xda" + body + struct.pack(">I", check)
+
+
+def _gzip_repeated(path: Path, chunk: bytes, times: int) -> None:
+    crc = 0
+    for _ in range(times):
+        crc = zlib.crc32(chunk, crc)
+    header = b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x02\xff"
+    path.write_bytes(header + _deflate_repeated(chunk, times) + struct.pack("<II", crc, (len(chunk) * times) % 2**32))
+
+
+def _png(path: Path, width: int, height: int, rows: bytes | None = None, before_idat=(), idat: bytes | None = None):
+    """An 8-bit grey PNG; ``rows`` its filtered scanlines (default: all white)."""
+    if idat is None:
+        idat = zlib.compress(rows if rows is not None else (b"\0" + b"\xff" * width) * height, 9)
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", ihdr) + b"".join(before_idat) +
+                     _png_chunk(b"IDAT", idat) + _png_chunk(b"IEND", b""))
+    return path
+
+
+def _plan(levels: tuple[int, int]) -> np.ndarray:
+    """A 120 x 160 px room (free inside, walls 4 px thick and a pillar) at the grey levels (wall, free)."""
+    wall, free = levels
+    pixels = np.full((120, 160), wall)
+    pixels[4:-4, 4:-4] = free
+    pixels[50:70, 60:90] = wall
+    return pixels
+
+
+def _model_zip(path: Path, members: dict[str, bytes]):
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+    return path
+
+
+def _zip_with_huge_member(path: Path, name: str, size: int, chunk_size: int = 64 << 20) -> Path:
+    """A zip whose member ``name`` holds ``size`` zero bytes (deflated once per 64 MiB, copies concatenated)."""
+    chunk = b"\0" * chunk_size
+    times = size // chunk_size
+    crc = 0
+    for _ in range(times):
+        crc = zlib.crc32(chunk, crc)
+    data = _deflate_repeated(chunk, times)
+    with zipfile.ZipFile(path, "w") as archive:  # written through zipfile's own header code
+        info = zipfile.ZipInfo(name)
+        info.compress_type = zipfile.ZIP_DEFLATED
+        info.file_size, info.compress_size, info.CRC = times * chunk_size, len(data), crc
+        archive.fp.write(info.FileHeader(zip64=True))
+        archive.fp.write(data)
+        info.header_offset = 0
+        archive.filelist.append(info)
+        archive.NameToInfo[name] = info
+        archive.start_dir = archive.fp.tell()
+    return path
+
+
+def _flaser(x: float, t: float, x_text: str | None = None, sep: str = " ") -> str:
+    return sep.join(["FLASER", "180", SCAN.replace(" ", sep), "0", "0", "0", x_text or repr(x), "0", "0",
+                     repr(t), "h", repr(t)])
+
+
+def probe_inputs(folder: Path) -> list[tuple[str, list[str]]]:
+    """The hostile inputs of the second audit and the command each one is given to (run in a subprocess)."""
+    py = [sys.executable, "-c"]
+    cli = [sys.executable, "-m", "emmi_gym.cli"]
+    f = folder
+    load = "from emmi_gym.world import load_world; w = load_world({!r}); print('loaded', w.name, len(w.walls), 'walls')"
+
+    # 1. 16-bit images
+    from PIL import Image
+
+    Image.fromarray(_plan((78, 255)).astype(np.uint8)).save(f / "plan8.png")
+    Image.fromarray(_plan((20000, 65535)).astype(np.uint16)).save(f / "plan16.png")
+    Image.fromarray(_plan((20000, 65535)).astype(np.uint16)).save(f / "map16.pgm")
+    (f / "map16.yaml").write_text("image: map16.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    Image.fromarray(_plan((78, 255)).astype(np.uint8)).save(f / "jpeg.png", format="JPEG")
+    free = ("from emmi_gym.world.images import dungeon_occupancy, map_server_occupancy; "
+            "a = dungeon_occupancy({!r}).free; b = dungeon_occupancy({!r}).free; c = map_server_occupancy({!r}).free; "
+            "print(f'free share 8-bit {{a.mean():.3f}}, 16-bit PNG {{b.mean():.3f}}, 16-bit PGM map {{c.mean():.3f}}')")
+    # 2. timestamps and numbers
+    logs = {"backwards": [_flaser(0.5 * k, 5.0 - k) for k in range(5)],
+            "equal": [_flaser(0.5 * k, 7.0) for k in range(5)],
+            "arabic_digits": [_flaser(0.5 * k, k, "\u0661.\u0665" if k == 2 else None) for k in range(5)],
+            "nbsp": [_flaser(0.5 * k, k, sep="\u00a0" if k == 3 else " ") for k in range(5)],
+            "pose_1e300": [_flaser(0.5 * k, k) for k in range(3)] + [_flaser(1e300, 3.0)]}
+    for name, lines in logs.items():
+        (f / f"{name}.log").write_text("\n".join(lines) + "\n")
+    # 3. nesting
+    nested = "[" * 50_000 + "]" * 50_000
+    (f / "deep_world.yaml").write_text(yaml.safe_dump(WORLD) + f"places: {nested}\n")
+    (f / "deep_map.yaml").write_text(f"image: plan8.png\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nstart: {nested}\n")
+    (f / "deep_set").mkdir()
+    (f / "deep_set" / "deep.yaml").write_text((f / "deep_map.yaml").read_text().replace("plan8.png", "../plan8.png"))
+    (f / "deep_agent.yaml").write_text(yaml.safe_dump(AGENT) + f"seed: {nested}\n")
+    (f / "chain").mkdir()
+    for k in range(3000):
+        (f / "chain" / f"c{k}.yaml").write_text(f"base: c{k + 1}.yaml\n" if k < 2999 else yaml.safe_dump(AGENT))
+    # 4. Pillow's errors
+    ztxt = b"Comment\0\0" + _deflate_repeated(b"\0" * (64 << 20), 16, wbits=15)  # 1 GiB of text
+    _png(f / "ztxt.png", 64, 64, before_idat=[_png_chunk(b"zTXt", ztxt)])
+    (f / "truncated.pgm").write_bytes(b"P5\n100 100\n255\n" + b"\xff" * 500)
+    (f / "maxval0.pgm").write_bytes(b"P5\n10 10\n0\n" + b"\0" * 100)
+    rows = _deflate_repeated((b"\0" + b"\xff" * 20000) * 1000, 20, wbits=15)
+    _png(f / "huge.png", 20000, 20000, idat=rows)
+    # 6. output folders
+    (f / "a_file").write_text("x")
+    (f / "straight.log").write_text("\n".join(_flaser(0.5 * k, k) for k in range(5)) + "\n")
+    train_config = dict(AGENT, vec_env="dummy", hyperparameters={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                        eval={"freq": 10**6}, checkpoint_freq=10**6)
+    (f / "train.yaml").write_text(yaml.safe_dump(train_config))
+    # 7. configurations SB3 would break on
+    for name, kwargs in (("net_arch", {"net_arch": [-5]}), ("activation", {"activation_fn": "os.system"})):
+        (f / f"{name}.yaml").write_text(yaml.safe_dump(dict(train_config, hyperparameters=dict(
+            train_config["hyperparameters"], policy_kwargs=kwargs))))
+    # 8, 10. model files
+    ppo = dict(train_config, algorithm="PPO")
+    for name in ("no_data", "maskable", "bomb"):
+        (f / name).mkdir()
+        (f / name / "config.yaml").write_text(yaml.safe_dump(ppo))
+    _model_zip(f / "no_data" / "model.zip", {"policy.pth": b"\0" * 100})
+    from sb3_contrib import MaskablePPO
+
+    MaskablePPO("MultiInputPolicy", gym.make("emmi_gym/LoopCorridor-v0", particles=3), n_steps=16,
+                batch_size=16).save(f / "maskable" / "model.zip")
+    _zip_with_huge_member(f / "bomb" / "model.zip", "data", 4 * GIB)
+    # 9, 12. streams
+    _gzip_repeated(f / "zeros.log.gz", b"\0" * (64 << 20), 9 * 16)
+    (f / "long_line.log").write_text("FLASER " + "1 " * 50_000_000 + "\n")
+    _gzip_repeated(f / "newlines.log.gz", b"\n" * (64 << 20), 9 * 16)
+    block = "".join(_flaser(0.001 * (k % 2), k % 2) + "\n" for k in range(2))
+    _gzip_repeated(f / "repeated.log.gz", block.encode() * ((64 << 20) // len(block)), 9 * 16)
+    # 11. a large plan in few bytes, and a maze whose walls would be millions of segments
+    Image.new("L", (5000, 5000), 255).save(f / "large.png")
+    maze = np.full((2000, 2000), 255, dtype=np.uint8)
+    for k in (0, 1):
+        maze[k::8, :] = maze[:, k::8] = 0
+    maze[0::8, 4::8] = maze[1::8, 4::8] = maze[4::8, 0::8] = maze[4::8, 1::8] = 255  # a door in every wall
+    Image.fromarray(maze).save(f / "maze.png")
+    # misc: messages
+    (f / "no_image.yaml").write_text("resolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: 0\n"
+                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    (f / "text.png").write_text("not an image\n")
+    (f / "eval_png.yaml").write_text(yaml.safe_dump(dict(AGENT, eval={"env_kwargs": {"world": str(f / "text.png")}})))
+    (f / "x.png").mkdir()
+    replay = [*cli, "replay", "--out", str(f / "replay_out")]
+    make_step = ("import gymnasium as gym, emmi_gym; env = gym.make('emmi_gym/Explore-v0', world={!r}); "
+                 "env.reset(seed=0); env.step(0); print('stepped')")
+    return [
+        ("1. 16-bit PNG and PGM (walls at 20000 of 65535) beside the 8-bit plan",
+         [*py, free.format(str(f / "plan8.png"), str(f / "plan16.png"), str(f / "map16.yaml"))]),
+        ("1. a JPEG named .png", [*py, load.format(str(f / "jpeg.png"))]),
+        ("2. log timestamps going backwards", [*replay, str(f / "backwards.log"), "--max-range", "8", "--quiet"],
+         "warning|tum"),
+        ("2. log timestamps all equal", [*replay, str(f / "equal.log"), "--max-range", "8", "--quiet"],
+         "no best_trajectory"),
+        ("2. log with Arabic-Indic digits", [*replay, str(f / "arabic_digits.log"), "--max-range", "8", "--quiet"]),
+        ("2. log with no-break spaces between fields", [*replay, str(f / "nbsp.log"), "--max-range", "8", "--quiet"]),
+        ("3. 50,000-deep YAML: world file", [*py, load.format(str(f / "deep_world.yaml"))]),
+        ("3. 50,000-deep YAML: map_server file", [*py, load.format(str(f / "deep_map.yaml"))]),
+        ("3. 50,000-deep YAML: map set, at reset",
+         [*py, make_step.format(str(f / "deep_set"))]),
+        ("3. 50,000-deep YAML: agent configuration", [*cli, "train", str(f / "deep_agent.yaml"), "--out",
+                                                      str(f / "run_deep"), "--quiet"]),
+        ("3. chain of 3000 base: files", [*cli, "train", str(f / "chain" / "c0.yaml"), "--out", str(f / "run_chain"),
+                                          "--quiet"]),
+        ("4. PNG with a zTXt chunk inflating to 1 GiB", [*py, load.format(str(f / "ztxt.png"))]),
+        ("4. truncated PGM", [*py, load.format(str(f / "truncated.pgm"))]),
+        ("4. PGM with maxval 0", [*py, load.format(str(f / "maxval0.pgm"))]),
+        ("4. 20000 x 20000 PNG", [*py, load.format(str(f / "huge.png"))]),
+        ("4. 20000 x 20000 PNG through the CLI (record)", [*cli, "record", str(f / "huge.png"), "--out",
+                                                            str(f / "rec.log")]),
+        ("5. log pose of 1e300", [*replay, str(f / "pose_1e300.log"), "--max-range", "8", "--quiet"]),
+        ("6. train --out /sys/x", [*cli, "train", str(f / "train.yaml"), "--out", "/sys/x", "--quiet"]),
+        ("6. train --out a_file/sub", [*cli, "train", str(f / "train.yaml"), "--out", str(f / "a_file" / "sub"),
+                                       "--quiet"]),
+        ("6. replay --out /sys/x", [*cli, "replay", str(f / "straight.log"), "--max-range", "8", "--out", "/sys/x",
+                                    "--quiet"]),
+        ("7. policy_kwargs net_arch [-5]", [*cli, "train", str(f / "net_arch.yaml"), "--out", str(f / "run_arch"),
+                                            "--timesteps", "16", "--quiet"]),
+        ("7. policy_kwargs activation_fn os.system",
+         [*cli, "train", str(f / "activation.yaml"), "--out", str(f / "run_act"), "--timesteps", "16", "--quiet"]),
+        ("8. evaluate: zip without a data member", [*cli, "evaluate", str(f / "no_data" / "model.zip"),
+                                                    "--episodes", "1"]),
+        ("8. evaluate: MaskablePPO zip beside a PPO config", [*cli, "evaluate", str(f / "maskable" / "model.zip"),
+                                                              "--episodes", "1"]),
+        ("9. replay /dev/zero", [*replay, "/dev/zero", "--max-range", "8"]),
+        ("9. replay 9 GiB of zeros in a 9 MB .gz", [*replay, str(f / "zeros.log.gz"), "--max-range", "8"]),
+        ("9. replay one 100 MB line", [*replay, str(f / "long_line.log"), "--max-range", "8"]),
+        ("10. evaluate: data member of 4 GiB", [*cli, "evaluate", str(f / "bomb" / "model.zip"), "--episodes", "1"]),
+        ("11. 5000 x 5000 plan (8 KB): load_world", [*py, load.format(str(f / "large.png"))]),
+        ("11. 5000 x 5000 plan: gym.make, reset, step", [*py, make_step.format(str(f / "large.png"))]),
+        ("11. 2000 x 2000 maze (1.75 M boundary edges): load_world", [*py, load.format(str(f / "maze.png"))]),
+        ("12. replay 9 GiB of newlines in a .gz", [*replay, str(f / "newlines.log.gz"), "--max-range", "8"]),
+        ("12. replay one valid block repeated to 9 GiB", [*replay, str(f / "repeated.log.gz"), "--max-range", "8"]),
+        ("replay --max-range inf", [*replay, str(f / "straight.log"), "--max-range", "inf", "--quiet"]),
+        ("replay --max-range nan", [*replay, str(f / "straight.log"), "--max-range", "nan", "--quiet"]),
+        ("replay --max-range -5", [*replay, str(f / "straight.log"), "--max-range", "-5", "--quiet"]),
+        ("replay --seed -1", [*replay, str(f / "straight.log"), "--max-range", "8", "--seed", "-1", "--quiet"]),
+        ("map_server YAML without image:", [*py, load.format(str(f / "no_image.yaml"))]),
+        ("eval.env_kwargs.world: text.png", [*cli, "train", str(f / "eval_png.yaml"), "--out", str(f / "run_png"),
+                                             "--quiet"]),
+        ("world: a folder named x.png", [*py, load.format(str(f / "x.png"))]),
+        ("world: /dev/zero", [*py, load.format("/dev/zero")]),
+    ]
+
+
+def _measure(command: list[str], limit: float, cap_mb: float, pick: str | None = None) -> dict:
+    """Run ``command`` in its own process group (stdlib only: this runs in a small process of its own, so that
+    the peak memory the kernel reports for the probe is the probe's, not inherited from the audit at fork):
+    its exit status, last line of output (or the first matching ``pick``), seconds, peak RSS (MB), why it was
+    killed (``limit`` seconds or ``cap_mb``), when it last printed and whether that was a progress bar."""
+    import os
+    import re
+    import signal
+    import subprocess
+    import threading
+    import time
+
+    def rss_mb(pid):
+        try:
+            with open(f"/proc/{pid}/statm") as statm:
+                return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+        except (OSError, ValueError, IndexError):
+            return 0.0
+
+    started = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+    output, last_output = bytearray(), [None]
+
+    def read():
+        for piece in iter(lambda: process.stdout.read1(65536), b""):
+            output.extend(piece)
+            del output[:-65536]
+            last_output[0] = time.perf_counter() - started
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    killed, done = [None], threading.Event()
+
+    def watch():  # the time limit, and a memory cap that keeps a runaway probe from taking the machine
+        while not done.wait(0.05):
+            over_time = time.perf_counter() - started > limit
+            if over_time or rss_mb(process.pid) > cap_mb:
+                killed[0] = f"{limit:.0f} s" if over_time else f"{cap_mb:.0f} MB"
+                os.killpg(process.pid, signal.SIGKILL)
+                return
+
+    threading.Thread(target=watch, daemon=True).start()
+    _, status, usage = os.wait4(process.pid, 0)
+    seconds = time.perf_counter() - started
+    done.set()
+    process.returncode = os.waitstatus_to_exitcode(status)
+    reader.join(5)
+    text = output.decode("utf-8", "replace").replace("\r", "\n")
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    bars = [line for line in lines if re.search(r"\d+%\||[\d?.]+ ?(it|B|scan)/s|s/(it|scan)\]", line)]
+    said = [line for line in lines if line not in bars]
+    last = (bars or lines)[-1] if killed[0] or not said else said[-1]
+    if pick is not None:
+        last = next((line for line in lines if re.search(pick, line)), last)
+    return {"rc": process.returncode, "seconds": seconds, "peak_mb": usage.ru_maxrss / 1024, "killed": killed[0],
+            "last_output": last_output[0], "last": last, "progress": bool(bars)}
+
+
+def run_probe(command: list[str], limit: float = PROBE_LIMIT, pick: str | None = None) -> dict:
+    """:func:`_measure` of ``command``, run from a small Python process."""
+    source = (f"import json, sys\n{inspect.getsource(_measure)}\n"
+              f"print(json.dumps(_measure(json.loads(sys.argv[1]), {limit!r}, {MEMORY_CAP_MB!r}, {pick!r})))")
+    result = subprocess.run([sys.executable, "-c", source, json.dumps(command)], capture_output=True, text=True, check=False)
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def probes(folder: Path, only: str | None = None) -> None:
+    print("\n| probe (subprocess) | exit | outcome (last line of output) | s | peak MB |\n| --- | --- | --- | --- | --- |",
+          flush=True)
+    for label, command, *pick in probe_inputs(folder):
+        if only is not None and only not in label:
+            continue
+        r = run_probe(command, pick=pick[0] if pick else None)
+        outcome = r["last"][:300].replace("|", "/")
+        if r["killed"]:
+            shown = f"progress shown, last output at {r['last_output']:.0f} s" if r["progress"] else "no progress output"
+            outcome = f"KILLED at {r['killed']} ({shown}): {outcome}"
+        print(f"| {label} | {r['rc']} | {outcome} | {r['seconds']:.1f} | {r['peak_mb']:.0f} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--train", action="store_true", help="also interrupt two training runs")
+    parser.add_argument("--probes-only", action="store_true", help="only the probes run in a subprocess each")
+    parser.add_argument("--only", default=None, metavar="TEXT", help="only the probes whose label holds TEXT")
     args = parser.parse_args()
-    print("| case | outcome | s | peak MB |\n| --- | --- | --- | --- |")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        for label, action in cases(folder):
-            outcome, seconds, peak = run_case(action)
-            print(f"| {label} | {outcome[:220].replace('|', '/')} | {seconds:.2f} | {peak:.1f} |", flush=True)
+        if not args.probes_only:
+            print("| case | outcome | s | peak MB |\n| --- | --- | --- | --- |")
+            for label, action in cases(folder):
+                outcome, seconds, peak = run_case(action)
+                print(f"| {label} | {outcome[:220].replace('|', '/')} | {seconds:.2f} | {peak:.1f} |", flush=True)
+        (folder / "probes").mkdir()
+        probes(folder / "probes", args.only)
         if args.train:
             for label, outcome, seconds in training_interrupts(folder):
                 print(f"| {label} | {outcome} | {seconds:.1f} after SIGINT | - |", flush=True)
