@@ -207,8 +207,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from .experiments.episodes import summarise
     from .inputs.paths import output_folder
-    from .training.episodes import summarise
     from .training.evaluate import evaluate_model, format_table
     from .training.train import load_run_config, set_torch_threads
 
@@ -244,10 +244,10 @@ def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
 
 def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:
     from .experiments.comparison import markdown_table
+    from .experiments.episodes import summarise
     from .experiments.report import write_csv
     from .inputs.paths import output_folder
     from .policies import POLICY_NAMES
-    from .training.episodes import summarise
     from .training.evaluate import OWN_WORLD, compare_model, format_table, write_figures
 
     if args.video:

@@ -20,7 +20,7 @@ import yaml
 
 from emmi_gym import pretrained
 from emmi_gym.experiments.comparison import markdown_table
-from emmi_gym.training.episodes import summarise
+from emmi_gym.experiments.episodes import summarise
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.training.train import TRAINING_RECORD, load_run_config, machine_description
 

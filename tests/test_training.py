@@ -9,11 +9,11 @@ import pytest
 import yaml
 
 from emmi_gym.cli import main
+from emmi_gym.experiments.episodes import GROUND_TRUTH
+from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
 from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
-from emmi_gym.training.episodes import GROUND_TRUTH
 from emmi_gym.training.evaluate import evaluate_model
-from emmi_gym.training.loop_order import LOOP_ORDER_KEY
 from emmi_gym.training.train import latest_checkpoint, make_env, train, training_torch_threads
 
 #: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.

@@ -1,7 +1,9 @@
 """Policies compared on many worlds, paired by world and seed, under the ground-truth scores.
 
-A policy is a scripted one, by name (:func:`emmi_gym.policies.make_policy`), or a trained agent
-(:class:`TrainedAgent`, a model written by ``emmi-gym train``). Each (world, seed) gives one
+A policy is a scripted one, by name (:func:`emmi_gym.policies.make_policy`), or any object with a
+``name`` and a ``make_actor()`` that returns what acts in
+:func:`~emmi_gym.experiments.episodes.run_episode` (a trained agent:
+:class:`emmi_gym.training.evaluate.TrainedAgent`). Each (world, seed) gives one
 episode per policy from the same start and the same random draws up to the first decision; the
 table reports each policy's mean and the paired difference with its 95% interval (Student's t,
 clipped to the measure's range; Wilson for proportions), the scores being the final ``info`` of
@@ -13,18 +15,17 @@ reached, and the share of decisions that went back to close a loop.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import gymnasium as gym
 import numpy as np
 
 from ..concurrency.parallel import run_in_processes
 from ..policies import make_policy
-from ..training.episodes import ModelActor, PolicyActor
-from ..training.episodes import run_episode as run_actor_episode
-from ..training.loop_order import LOOP_ORDER_KEY, LoopOrderInfo
 from ..world.map_sets import map_set_files
+from .episodes import PolicyActor
+from .episodes import run_episode as run_actor_episode
 from .intervals import difference_interval, measure_interval
+from .loop_order import LOOP_ORDER_KEY, LoopOrderInfo
 
 #: The scores compared, with their labels.
 SCORES = {"oracle_accuracy": "accuracy against the oracle map", "wall_consistency": "wall consistency",
@@ -35,15 +36,6 @@ SCORES = {"oracle_accuracy": "accuracy against the oracle map", "wall_consistenc
 #: Scores where lower is better; the others count "better" when higher, except those of :data:`NO_BETTER`.
 LOWER_IS_BETTER = ("ate", "sim_steps_to_target")
 NO_BETTER = ("revisit_share", LOOP_ORDER_KEY, "decisions", "sim_steps")
-
-
-@dataclass(frozen=True)
-class TrainedAgent:
-    """A trained model to compare beside the scripted policies: the ``.zip`` that ``emmi-gym train``
-    wrote (its ``config.yaml`` beside it) and the name its rows carry."""
-
-    path: str
-    name: str = "agent"
 
 
 @dataclass(frozen=True)
@@ -58,34 +50,22 @@ class ComparisonSettings:
 
 
 def policy_name(policy) -> str:
-    """The name a policy's rows carry: a scripted policy's own, a trained agent's ``name``."""
-    return policy.name if isinstance(policy, TrainedAgent) else policy
-
-
-@lru_cache(maxsize=4)
-def _load_model(path: str):
-    """A trained agent's model, loaded once per process, acting on one torch thread."""
-    import torch
-
-    from ..training.evaluate import load_model
-
-    torch.set_num_threads(1)
-    return load_model(path)[0]
+    """The name a policy's rows carry: a scripted policy's own, another policy's ``name``."""
+    return policy if isinstance(policy, str) else policy.name
 
 
 def make_actor(policy):
-    """What acts in :func:`emmi_gym.training.episodes.run_episode`: a fresh scripted policy, or the agent's model."""
-    if isinstance(policy, TrainedAgent):
-        return ModelActor(_load_model(policy.path))
-    return PolicyActor(make_policy(policy))
+    """What acts in :func:`~emmi_gym.experiments.episodes.run_episode`: a fresh scripted policy, or what
+    ``policy.make_actor()`` gives."""
+    return PolicyActor(make_policy(policy)) if isinstance(policy, str) else policy.make_actor()
 
 
 def run_episode(world, seed: int, policy, settings: ComparisonSettings = ComparisonSettings(),
                 keep_maps: bool = False, keep_steps: bool = False) -> dict:
-    """One episode of ``policy`` (a scripted policy's name or a :class:`TrainedAgent`) on ``world`` with
+    """One episode of ``policy`` (a scripted policy's name or an object with ``make_actor()``) on ``world`` with
     ``seed``: its final scores (with ``keep_maps``, the expected map, the oracle map and the grid's
     extent; with ``keep_steps``, every step's reward components, see
-    :func:`emmi_gym.training.episodes.run_episode`)."""
+    :func:`emmi_gym.experiments.episodes.run_episode`)."""
     env = settings.make_env(world)
     core = env.unwrapped
     scores = run_actor_episode(env, make_actor(policy), seed, keep_steps=keep_steps)
@@ -113,14 +93,14 @@ def compare(worlds, seeds, policies, settings: ComparisonSettings = ComparisonSe
 
 
 def compare_on(episodes, policies, settings: ComparisonSettings = ComparisonSettings(), *,
-               workers: int | None = None, progress: bool = True, keep_steps: bool = False) -> list[dict]:
-    """Every policy on each ``(world, seed)`` of ``episodes``, in ``workers`` processes; rows sorted by
-    world, seed, policy (with ``keep_steps``, each row's ``steps``: see :func:`run_episode`). Trained
-    agents run in spawned processes (torch and fork do not mix)."""
+               workers: int | None = None, progress: bool = True, keep_steps: bool = False,
+               start_method: str | None = None) -> list[dict]:
+    """Every policy on each ``(world, seed)`` of ``episodes``, in ``workers`` processes (started by
+    ``start_method``: "spawn" where a policy uses torch); rows sorted by world, seed, policy (with
+    ``keep_steps``, each row's ``steps``: see :func:`run_episode`)."""
     jobs = [(w if w is None else str(w), int(s), p, settings, keep_steps) for w, s in episodes for p in policies]
-    spawn = any(isinstance(p, TrainedAgent) for p in policies)
     rows = run_in_processes(_run, jobs, workers=workers, desc="episodes", progress=progress,
-                            start_method="spawn" if spawn else None)
+                            start_method=start_method)
     order = {policy_name(p): i for i, p in enumerate(policies)}
     return sorted(rows, key=lambda r: (r["world"], r["seed"], order[r["policy"]]))
 

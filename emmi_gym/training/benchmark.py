@@ -20,12 +20,12 @@ from tqdm.auto import tqdm
 
 from ..concurrency.parallel import run_in_processes
 from ..concurrency.ray_cluster import connect_ray
+from ..experiments.episodes import PolicyActor, nanmean, run_episodes
 from ..experiments.intervals import measure_interval
+from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
 from .config import AgentConfig
-from .episodes import PolicyActor, nanmean, run_episodes
 from .evaluate import EVALUATION_SEED, evaluate_model
-from .loop_order import LOOP_ORDER_KEY
 from .train import make_env, set_torch_threads, train
 
 #: Ground-truth columns of the benchmark table, with their labels.

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 from stable_baselines3.common.callbacks import EvalCallback
 
-from .episodes import GROUND_TRUTH, nanmean
-from .loop_order import LOOP_ORDER_KEY
+from ..experiments.episodes import GROUND_TRUTH, nanmean
+from ..experiments.loop_order import LOOP_ORDER_KEY
 
 
 class GroundTruthEvalMixin:

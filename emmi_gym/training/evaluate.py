@@ -3,9 +3,11 @@ metric, and optionally a video of each episode (gymnasium's ``RecordVideo``)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
-from .episodes import ModelActor, run_episodes
+from ..experiments.episodes import ModelActor, run_episodes
 from .model_files import load_model_file
 from .train import load_run_config, make_env
 
@@ -14,6 +16,28 @@ OWN_WORLD = object()
 #: Evaluation episodes are seeded from here on by default: apart from training (config seeds)
 #: and from the periodic evaluation during training (eval.seed).
 EVALUATION_SEED = 200_000
+
+
+@dataclass(frozen=True)
+class TrainedAgent:
+    """A trained model to compare beside the scripted policies
+    (:func:`emmi_gym.experiments.comparison.compare_on`): the ``.zip`` that ``emmi-gym train`` wrote
+    (its ``config.yaml`` beside it) and the name its rows carry."""
+
+    path: str
+    name: str = "agent"
+
+    def make_actor(self) -> ModelActor:
+        return ModelActor(_model_in_this_process(self.path))
+
+
+@lru_cache(maxsize=4)
+def _model_in_this_process(path: str):
+    """A model loaded once per (worker) process, acting on one torch thread."""
+    import torch
+
+    torch.set_num_threads(1)
+    return load_model(path)[0]
 
 
 def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, video_dir=None,
@@ -63,19 +87,19 @@ def compare_model(model_path, name: str = "agent", world=OWN_WORLD, episodes: in
     run's evaluation env (:func:`emmi_gym.experiments.comparison.compare_on`): ``world`` a world, map
     set, folder or glob (default: the evaluation env's own world), its maps or seeds taken as
     :func:`~emmi_gym.experiments.comparison.episodes_on` says. Rows carry ``name`` for the model."""
-    from ..experiments.comparison import TrainedAgent, compare_on, episodes_on
+    from ..experiments.comparison import compare_on, episodes_on
 
     settings, own_world = comparison_settings(load_run_config(Path(model_path)))
     pairs = episodes_on(own_world if world is OWN_WORLD else world, episodes, seed)
     return compare_on(pairs, [TrainedAgent(str(model_path), name), *baselines], settings, workers=workers,
-                      progress=progress)
+                      progress=progress, start_method="spawn")  # torch and fork do not mix
 
 
 def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> list[Path]:
     """``front.png`` (map quality against robot time, a point per policy) and, beside a baseline,
     ``maps.png``: the episode where the model's accuracy against the oracle map differs most from the
     first baseline's (among those where it went back, if any), both maps with where it went back."""
-    from ..experiments.comparison import TrainedAgent, paired, plot_front, plot_pair, run_episode
+    from ..experiments.comparison import paired, plot_front, plot_pair, run_episode
 
     out = Path(out)
     plot_front(rows, out / "front.png")

@@ -31,9 +31,9 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from ..concurrency.parallel import one_kernel_thread
+from ..experiments.loop_order import LoopOrderInfo
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument, sb3_policy_kwargs
-from .loop_order import LoopOrderInfo
 from .model_files import load_model_file
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 

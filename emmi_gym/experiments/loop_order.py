@@ -6,7 +6,7 @@ import math
 
 import gymnasium as gym
 
-from ..experiments.ab import closed_loop_first, new_area_now
+from .ab import closed_loop_first, new_area_now
 
 #: The ``info`` key of the last step of an episode that started at a loop's decision point.
 LOOP_ORDER_KEY = "closed_loop_first"

@@ -47,7 +47,7 @@ def run_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
 
     ``sim_steps_to_target`` is the simulator steps until the coverage target (NaN if it was
     not reached); where the episode starts at a loop's decision point and ``env`` is wrapped in
-    :class:`~emmi_gym.training.loop_order.LoopOrderInfo` (as ``make_env`` does),
+    :class:`~emmi_gym.experiments.loop_order.LoopOrderInfo` (as ``make_env`` does),
     ``closed_loop_first`` is 1.0 if the robot went back to the loop's start before entering the
     new area, 0.0 if it entered the new area first, NaN if neither. ``revisit_share`` is the
     fraction of waypoint decisions that chose a revisit target (``info["target_kind"]``; NaN
