@@ -88,10 +88,10 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
     import numpy as np
 
+    from .experiments.replay import replay, tum_problem, tum_warning, write_outputs
     from .formats.carmen import read_log
     from .inputs.paths import output_folder
     from .slam import RBPFConfig
-    from .slam.replay import replay, tum_problem, tum_warning, write_outputs
 
     output_folder(args.out)  # before the run, which would otherwise be lost at its end
     options = dict(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,

@@ -22,10 +22,10 @@ from _data import require_files
 from PIL import Image
 from scipy import ndimage
 
+from emmi_gym.experiments.replay import laser_stream, log_extent
 from emmi_gym.formats import carmen
 from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam.occupancy import ParticleMaps
-from emmi_gym.slam.replay import laser_stream, log_extent
 from emmi_gym.slam.sensor_model import CellCodes
 from emmi_gym.world import load_world
 

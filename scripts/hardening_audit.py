@@ -40,9 +40,9 @@ import yaml
 
 import emmi_gym  # noqa: F401
 from emmi_gym.env import ENV_IDS
+from emmi_gym.experiments.replay import replay
 from emmi_gym.formats.carmen import parse_lines, read_log
 from emmi_gym.slam import RBPFConfig
-from emmi_gym.slam.replay import replay
 from emmi_gym.training.config import load_agent_config
 from emmi_gym.world import load_world
 

@@ -33,9 +33,9 @@ from _data import require_files
 from _options import rbpf_config
 
 from emmi_gym.concurrency.threads import set_kernel_threads
+from emmi_gym.experiments.replay import replay, write_map_png, write_tum
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.slam import RBPFConfig
-from emmi_gym.slam.replay import replay, write_map_png, write_tum
 
 LOGS = ("intel", "aces", "csail", "freiburg-079")
 

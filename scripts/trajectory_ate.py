@@ -14,9 +14,9 @@ import argparse
 
 import numpy as np
 
+from emmi_gym.experiments.replay import laser_stream, true_pose_at
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.scoring.scores import absolute_trajectory_error
-from emmi_gym.slam.replay import laser_stream, true_pose_at
 
 
 def main() -> None:

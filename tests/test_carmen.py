@@ -168,9 +168,9 @@ def test_scans_without_echo_are_reported_and_parsing_shows_progress(tmp_path, ca
 
 
 def test_replay_of_a_straight_drive_and_of_a_pose_far_away():
+    from emmi_gym.experiments.replay import replay
     from emmi_gym.slam import RBPFConfig
     from emmi_gym.slam.occupancy import MapTooLarge
-    from emmi_gym.slam.replay import replay
 
     straight = [f"FLASER 180 {SCAN} 0 0 0 {0.5 * k} 0 0 {k}.0 h {k}.0" for k in range(5)]
     result = replay(carmen.parse_lines(straight), RBPFConfig(particles=2), max_range=8.0)
@@ -215,8 +215,8 @@ def test_gzipped_logs_and_laser_offsets_from_param_lines(tmp_path):
 def test_replay_matches_truth_by_time_and_writes_tum(tmp_path):
     """TRUEPOS lines after their scans (as the radish-noisy logs have them) still give an ATE, and the
     best path is written in the TUM format."""
+    from emmi_gym.experiments.replay import replay, write_tum
     from emmi_gym.slam import RBPFConfig
-    from emmi_gym.slam.replay import replay, write_tum
 
     lines = []
     for k in range(6):

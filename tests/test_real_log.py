@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from emmi_gym.experiments.replay import replay
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.slam import RBPFConfig
-from emmi_gym.slam.replay import replay
 
 LOG = Path(__file__).parent / "data" / "intel-first-loop.log.gz"
 BACK_AT_START = 98  # keyframe at which the corrected path first returns to the start

@@ -13,8 +13,8 @@ from ..formats import carmen
 from ..geometry.grid import GridGeometry
 from ..geometry.motion import compose_motion
 from ..scoring.scores import absolute_trajectory_error
-from .config import RBPFConfig
-from .rbpf import RBPF, UpdateMetrics
+from ..slam.config import RBPFConfig
+from ..slam.rbpf import RBPF, UpdateMetrics
 
 
 @dataclass
