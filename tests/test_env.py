@@ -197,7 +197,7 @@ def test_async_vector_env_and_sb3_subproc_spawn():
 @pytest.mark.parametrize("options, message", [
     (dict(colour="red"), r"gym.make: field 'colour': expected one of the known options \[.*'reward'"),
     (dict(reward="fun"), r"field 'reward': expected one of \['emmi', 'pose_entropy', 'joint_entropy', 'coverage', "
-                         r"'emmi_coverage'\], got 'fun'"),
+                         r"'emmi_coverage', 'map_information'\], got 'fun'"),
     (dict(action_mode="teleport"), r"expected one of \['waypoint', 'velocity'\]"),
     (dict(particles=0), r"field 'particles': expected an integer in \[1, 1000\]"),
     (dict(laser={"beams": 10}), r"field 'laser.beams': expected one of the known options \['fov', 'n_beams'"),
