@@ -99,20 +99,19 @@ def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> li
     """``front.png`` (map quality against robot time, a point per policy) and, beside a baseline,
     ``maps.png``: the episode where the model's accuracy against the oracle map differs most from the
     first baseline's (among those where it went back, if any), both maps with where it went back."""
-    from ..experiments.comparison import paired, plot_front, plot_pair, run_episode
+    from ..experiments.comparison import plot_front, plot_pair, run_episode
 
     out = Path(out)
     plot_front(rows, out / "front.png")
     written = [out / "front.png"]
     if baselines:
         mine = {(r["world"], r["seed"]): r for r in rows if r["policy"] == name}
-        gaps = dict(zip(((w, s) for (w, s, p) in ((r["world"], r["seed"], r["policy"]) for r in rows)
-                         if p == baselines[0] and (w, s) in mine),
-                        paired(rows, "oracle_accuracy", name, baselines[0])))
+        theirs = {(r["world"], r["seed"]): r for r in rows if r["policy"] == baselines[0]}
+        gaps = {key: mine[key]["oracle_accuracy"] - theirs[key]["oracle_accuracy"] for key in mine.keys() & theirs}
         went_back = [key for key in gaps if mine[key].get("revisit_share", 0) > 0] or list(gaps)
-        world, seed = max(went_back, key=lambda key: abs(gaps[key]))
+        world, seed = max(sorted(went_back), key=lambda key: abs(gaps[key]))
         settings, _ = comparison_settings(load_run_config(Path(model_path)))
-        world = None if world == "None" else world
+        world = None if world == "None" else world  # rows name a generated world "None"
         episodes = [run_episode(world, seed, policy, settings, keep_maps=True, keep_steps=True)
                     for policy in (TrainedAgent(str(model_path), name), baselines[0])]
         plot_pair(episodes, out / "maps.png")
