@@ -243,8 +243,7 @@ def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
 
 
 def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:
-    from .experiments.comparison import markdown_table
-    from .experiments.episodes import summarise
+    from .experiments.comparison import markdown_table, policy_means
     from .experiments.report import write_csv
     from .inputs.paths import output_folder
     from .policies import POLICY_NAMES
@@ -262,9 +261,7 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
           f"{args.episodes} episodes, seeds from {args.seed}")
     rows = compare_model(model, name, world, args.episodes, args.seed, args.baselines, workers=args.workers,
                          progress=not args.quiet)
-    policies = [name, *args.baselines]
-    means = [{"policy": p, **summarise([{k: v for k, v in r.items() if isinstance(v, float)}
-                                        for r in rows if r["policy"] == p])} for p in policies]
+    means = policy_means(rows)
     print(format_table(means))
     tables = [markdown_table(rows, name, baseline, f"{name} - {baseline}") for baseline in args.baselines]
     for table in tables:

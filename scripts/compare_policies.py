@@ -18,10 +18,10 @@ import gymnasium as gym
 from _options import checked, json_object
 
 from emmi_gym.env import ENV_IDS, EnvConfig
-from emmi_gym.experiments.comparison import ComparisonSettings, compare, markdown_table, plot_pair, run_episode
+from emmi_gym.experiments.comparison import (ComparisonSettings, compare, markdown_table, plot_pair, run_episode,
+                                              worlds_of)
 from emmi_gym.experiments.report import write_csv
 from emmi_gym.inputs.validation import build
-from emmi_gym.world.map_sets import map_set_files
 
 
 def main() -> None:
@@ -41,10 +41,7 @@ def main() -> None:
         parser.error(f"--env: no environment {args.env!r} is registered (emmi-gym's: "
                      f"{', '.join(f'emmi_gym/{name}' for name in ENV_IDS)})")
     checked(parser, build, EnvConfig, {**gym.spec(args.env).kwargs, **settings.env_options}, "", source="--options")
-    worlds = []
-    for name in args.worlds:
-        files = map_set_files(name)
-        worlds += [str(f) for f in files[:args.plans]] if files is not None else [name]
+    worlds = worlds_of(args.worlds, args.plans)
     baseline, policy = args.policies
     rows = compare(worlds, args.seeds, [baseline, policy], settings, workers=args.workers)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -25,11 +25,10 @@ import gymnasium as gym
 from _options import checked, json_object
 
 from emmi_gym.env import REWARDS, EnvConfig
-from emmi_gym.experiments.comparison import ComparisonSettings, compare_on
+from emmi_gym.experiments.comparison import ComparisonSettings, compare_on, worlds_of
 from emmi_gym.experiments.reward_alignment import QUALITIES, Discount, alignment, markdown, policy_front
 from emmi_gym.inputs.validation import build
 from emmi_gym.policies import POLICY_NAMES
-from emmi_gym.world.map_sets import map_set_files
 
 
 def main() -> None:
@@ -59,11 +58,7 @@ def main() -> None:
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
 
-    episodes = []
-    for name in args.worlds:
-        files = map_set_files(name)
-        worlds = [str(f) for f in files[:args.plans]] if files is not None else [name]
-        episodes += [(w, s) for w in worlds for s in args.seeds]
+    episodes = [(w, s) for w in worlds_of(args.worlds, args.plans) for s in args.seeds]
     rows = compare_on(episodes, args.policies, settings, workers=args.workers, keep_steps=True)
     results = alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES))
     title = (f"Reward alignment on {args.env}{f' {settings.env_options}' if settings.env_options else ''}: "

@@ -19,8 +19,7 @@ from pathlib import Path
 import yaml
 
 from emmi_gym import pretrained
-from emmi_gym.experiments.comparison import markdown_table
-from emmi_gym.experiments.episodes import summarise
+from emmi_gym.experiments.comparison import markdown_table, policy_means
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.training.train import TRAINING_RECORD, load_run_config, machine_description
 
@@ -60,9 +59,7 @@ def main() -> None:
     rows = compare_model(folder / "model.zip", args.name, OWN_WORLD if args.world is None else args.world,
                          args.episodes, args.seed, args.baselines, workers=args.workers)
     minutes = (time.perf_counter() - started) / 60
-    policies = [args.name, *args.baselines]
-    means = [{"policy": p, **summarise([{k: v for k, v in r.items() if isinstance(v, float)}
-                                        for r in rows if r["policy"] == p])} for p in policies]
+    means = policy_means(rows)
     tables = [markdown_table(rows, args.name, b, f"{args.name} - {b}") for b in args.baselines]
 
     command = (f"emmi-gym evaluate --pretrained {args.name} --episodes {args.episodes} --seed {args.seed}"

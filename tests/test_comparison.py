@@ -24,3 +24,10 @@ def test_policies_are_paired_by_world_and_seed(tmp_path):
     plot_pair([again, run_episode(worlds[0], 0, "active_loop_closing", settings, keep_maps=True)],
               tmp_path / "maps.png")
     assert (tmp_path / "maps.png").stat().st_size > 10_000
+
+
+def test_worlds_of_takes_a_sets_first_maps_and_a_world_as_it_is():
+    from emmi_gym.experiments.comparison import worlds_of
+
+    plans = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
+    assert worlds_of(["dungeon_maps/test", "loop_corridor"], 2) == [*plans, "loop_corridor"]

@@ -22,7 +22,7 @@ import numpy as np
 from ..concurrency.parallel import run_in_processes
 from ..policies import make_policy
 from ..world.map_sets import map_set_files
-from .episodes import PolicyActor
+from .episodes import PolicyActor, summarise
 from .episodes import run_episode as run_actor_episode
 from .intervals import difference_interval, measure_interval
 from .loop_order import LOOP_ORDER_KEY, LoopOrderInfo
@@ -103,6 +103,23 @@ def compare_on(episodes, policies, settings: ComparisonSettings = ComparisonSett
                             start_method=start_method)
     order = {policy_name(p): i for i, p in enumerate(policies)}
     return sorted(rows, key=lambda r: (r["world"], r["seed"], order[r["policy"]]))
+
+
+def worlds_of(names, plans: int) -> list[str]:
+    """The worlds ``names`` stand for: the first ``plans`` maps of each map set (a shipped set, a folder,
+    a glob), a world (a name, a file) as it is."""
+    worlds = []
+    for name in names:
+        files = map_set_files(name)
+        worlds += [str(f) for f in files[:plans]] if files is not None else [name]
+    return worlds
+
+
+def policy_means(rows: list[dict]) -> list[dict]:
+    """Each policy's mean of every numeric score over its episodes, in the rows' order of policies."""
+    policies = list(dict.fromkeys(r["policy"] for r in rows))
+    return [{"policy": p, **summarise([{k: v for k, v in r.items() if isinstance(v, float)}
+                                       for r in rows if r["policy"] == p])} for p in policies]
 
 
 def episodes_on(world, episodes: int, first_seed: int) -> list[tuple]:
