@@ -197,7 +197,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
           f"{out}/tb)")
     result = train(config, out, resume=args.resume, progress=not args.quiet,
-                   ray_address=None if args.ray in (None, "env") else args.ray)
+                   ray_address=None if args.ray in (None, "env") else args.ray, init_from=args.init_from)
     if result.interrupted:
         print(f"\ninterrupted at {result.timesteps} steps: saved {result.model_path}; continue with --resume")
         return 130
@@ -341,6 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--seed", type=_SEED, default=None, help="override seed")
     tr.add_argument("--out", default=None, help="run folder (default runs/<config>_seed<seed>)")
     tr.add_argument("--resume", action="store_true", help="continue from the run folder's latest checkpoint")
+    tr.add_argument("--init-from", default=None, metavar="MODEL",
+                    help="start from this model's weights (same algorithm, spaces and network) and train on with "
+                         "this configuration; its decisions count towards the total")
     tr.add_argument("--ray", nargs="?", const="env", default=None, metavar="ADDRESS",
                     help="run the env workers as Ray actors (vec_env: ray) on the cluster at ADDRESS ('local': a "
                          "Ray instance on this machine; no ADDRESS: RAY_ADDRESS, else local)")

@@ -188,3 +188,26 @@ def test_an_empty_waypoint_slot_stands_still_and_an_action_out_of_range_is_refus
     with pytest.raises(ValueError, match=r"action 8 is outside Discrete\(8\)"):
         env.step(8)
     assert env.decisions == 1
+
+
+def _revisits_offered(decisions=4, **options):
+    """How many revisit targets each decision offered, taking a revisit whenever one is offered."""
+    env = gym.make("emmi_gym/LoopCorridor-v0", particles=5, max_decisions=decisions, **options).unwrapped
+    env.reset(seed=0)
+    offered = []
+    for _ in range(decisions):
+        revisits = [k for k in np.flatnonzero(env.action_masks()) if env.targets[k].kind == "revisit"]
+        offered.append(len(revisits))
+        for k in revisits:
+            assert env.loop_spreads[k] > env.config.min_loop_spread
+        env.step(revisits[0] if revisits else int(np.flatnonzero(env.action_masks())[0]))
+    return offered, env.action_type.revisited
+
+
+def test_revisit_options_leave_out_loops_already_closed_or_gone_back_to():
+    offered, revisited = _revisits_offered()  # by default every revisit target is offered, again and again
+    assert all(n > 0 for n in offered) and len(revisited) == len(offered)
+    offered, revisited = _revisits_offered(revisit_spacing=100.0)  # one place gone back to rules out the rest
+    assert offered[0] > 0 and offered[1:] == [0] * (len(offered) - 1) and len(revisited) == 1
+    offered, revisited = _revisits_offered(min_loop_spread=100.0)  # no loop is that open
+    assert offered == [0] * len(offered) and revisited == []

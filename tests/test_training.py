@@ -414,3 +414,27 @@ def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(poli
     explore = make_env("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 1})
     explore.reset(seed=0)
     assert "closed_loop_first" not in explore.step(0)[4]   # no decision point: nothing to report
+
+
+def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisions(tmp_path):
+    import torch
+    from stable_baselines3 import PPO
+
+    from emmi_gym.training.model_files import ModelFileError
+
+    hyper = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
+    first = train(parse_agent_config(config_dict("PPO", hyper=hyper)), tmp_path / "first", progress=False)
+    copied = train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=first.timesteps)),
+                   tmp_path / "copied", progress=False, init_from=first.model_path)
+    before, after = (PPO.load(path).policy.state_dict() for path in (first.model_path, copied.model_path))
+    assert copied.timesteps == first.timesteps and all(torch.equal(before[name], after[name]) for name in before)
+
+    more = train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=160)), tmp_path / "more",
+                 progress=False, init_from=first.model_path)
+    assert more.timesteps >= 160 and (tmp_path / "more" / "checkpoints" / "model_144_steps.zip").exists()
+    record = yaml.safe_load((tmp_path / "more" / "training.yaml").read_text())
+    assert record["init_from"] == str(first.model_path) and record["timesteps"] == more.timesteps
+
+    with pytest.raises(ModelFileError, match="a MaskablePPO model"):
+        train(parse_agent_config(config_dict("MaskablePPO", {"velocity_actions": "discrete"}, hyper)),
+              tmp_path / "other", progress=False, init_from=first.model_path)

@@ -100,7 +100,9 @@ class WaypointAction(ActionType):
     on the expected map and follows it with the estimated pose
     (:class:`~emmi_gym.navigation.executor.MacroActionExecutor`) until the robot arrives, is
     blocked, or ``macro_timeout`` simulator steps pass. A target whose attempt ended blocked, or
-    that the robot could not set off for, is not offered again this episode.
+    that the robot could not set off for, is not offered again this episode; nor, with the options
+    ``min_loop_spread`` and ``revisit_spacing``, is a revisit target whose loop the particles
+    already agree on or that lies near a place the robot already went back to.
 
     An empty slot (masked by :meth:`action_masks`) makes the robot stand still for
     :data:`STAY_STEPS` simulator steps (15 s), which costs time; so does a target it cannot set
@@ -117,6 +119,7 @@ class WaypointAction(ActionType):
         self.slots: list[Target | None] = []
         self.spreads: list[float] = []
         self.blocked: list[tuple[float, float]] = []  # where attempts ended blocked this episode
+        self.revisited: list[tuple[float, float]] = []  # the revisit targets gone to this episode
 
     def space(self) -> spaces.Discrete:
         return spaces.Discrete(self.n_slots)
@@ -130,15 +133,27 @@ class WaypointAction(ActionType):
     def reset(self) -> None:
         super().reset()
         self.blocked = []
+        self.revisited = []
 
     def refresh(self) -> None:
         env, cfg = self.env, self.env.config
         slam = env.slam
+        spreads: dict[int, float] = {}
+
+        def spread(target: Target) -> float:
+            if target.path_index not in spreads:
+                spreads[target.path_index] = certainty.loop_displacement_spread(
+                    slam.paths, slam.log_weights, target.path_index, log_weights=True)
+            return spreads[target.path_index]
+
+        def worth_closing(target: Target) -> bool:
+            return spread(target) > cfg.min_loop_spread and all(
+                np.hypot(target.x - x, target.y - y) > cfg.revisit_spacing for x, y in self.revisited)
+
+        keep = worth_closing if cfg.min_loop_spread > 0 or cfg.revisit_spacing > 0 else None
         self.slots = self.navigation.targets(_EnvRobot(env), env._expected, slam.paths[slam.best],
-                                             cfg.n_frontiers, cfg.n_revisits, self.blocked)
-        self.spreads = [certainty.loop_displacement_spread(slam.paths, slam.log_weights, t.path_index,
-                                                           log_weights=True)
-                        if t is not None and t.kind == "revisit" else 0.0 for t in self.slots]
+                                             cfg.n_frontiers, cfg.n_revisits, self.blocked, keep)
+        self.spreads = [spread(t) if t is not None and t.kind == "revisit" else 0.0 for t in self.slots]
 
     def act(self, action) -> dict:
         target_kind = self._go(int(action))
@@ -152,6 +167,8 @@ class WaypointAction(ActionType):
             raise ValueError(f"action {action} is outside Discrete({self.n_slots})")
         env = self.env
         target: Target | None = self.slots[action]
+        if target is not None and target.kind == "revisit":
+            self.revisited.append(target.xy)
         outcome = self.navigation.follow(_EnvRobot(env), target) if target is not None else "stayed"
         if outcome == "blocked" or (outcome == "stayed" and target is not None):  # never offer it again
             self.blocked.append((target.x, target.y))

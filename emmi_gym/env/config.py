@@ -58,6 +58,12 @@ class EnvConfig:
       ``info["rbpf_updates"]`` (a list of rows; the paper's per-update curves, as the A/B
       experiment draws them). Off, the certainty of the particle set is computed once per
       step, after its last update, which is all the reward and the observation read.
+    - ``min_loop_spread`` and ``revisit_spacing`` (waypoint mode) leave out revisit targets where
+      closing the loop has nothing left to resolve: those whose loop spread (how far apart the
+      particles put the robot relative to the place) is at most ``min_loop_spread`` metres, and
+      those within ``revisit_spacing`` metres of a place the robot already went back to this
+      episode, as Stachniss et al.'s active loop-closing does (both read the filter's belief
+      only; 0, the default, leaves none out).
     - ``time_cost`` per simulator step and ``collision_cost`` per colliding step are
       subtracted whatever the reward, so doing nothing never pays.
     - ``laser``, ``odometry_noise``: a preset name (:mod:`emmi_gym.world.presets`:
@@ -121,6 +127,11 @@ class EnvConfig:
                               help="action slots of frontier targets")
     n_revisits: int = option(2, Integer(0, 64),
                              help="action slots of revisit (loop-closing) targets")
+    min_loop_spread: float = option(0.0, Real(0.0, 100.0, unit="m"),
+                                    help="revisit targets whose loop spread is at most this are not offered")
+    revisit_spacing: float = option(0.0, Real(0.0, 1000.0, unit="m"),
+                                    help="revisit targets this near a place already gone back to this episode are "
+                                         "not offered")
     max_decisions: int = option(60, Integer(1, 1_000_000),
                                 help="waypoint decisions after which the episode is truncated")
     max_sim_steps: int = option(12000, Integer(1, 100_000_000),

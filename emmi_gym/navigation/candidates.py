@@ -116,16 +116,18 @@ def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
 
 
 def candidate_slots(expected_map: np.ndarray, path: np.ndarray, costs: CostMap, n_frontiers: int,
-                    n_revisits: int, blocked=()) -> list[Target | None]:
+                    n_revisits: int, blocked=(), keep_revisit=None) -> list[Target | None]:
     """The action slots: frontiers then revisits, None where a slot is empty.
 
     Targets within ``BLOCKED_RADIUS`` of a ``blocked`` point (where an earlier attempt
-    ended against a wall) are left out, so the robot is not sent into the same wall again.
+    ended against a wall) are left out, so the robot is not sent into the same wall again;
+    so are revisit targets for which ``keep_revisit`` (if given) is false.
     """
     def open_(t: Target) -> bool:
         return all(np.hypot(t.x - bx, t.y - by) > BLOCKED_RADIUS for bx, by in blocked)
 
     frontiers = [t for t in frontier_targets(expected_map, costs) if open_(t)][:n_frontiers]
-    revisits = [t for t in revisit_targets(path, costs) if open_(t)][:n_revisits]
+    revisits = [t for t in revisit_targets(path, costs) if open_(t) and (keep_revisit is None or keep_revisit(t))]
+    revisits = revisits[:n_revisits]
     return (frontiers + [None] * (n_frontiers - len(frontiers))
             + revisits + [None] * (n_revisits - len(revisits)))

@@ -68,10 +68,11 @@ class MacroActionExecutor:
         self.costs: CostMap | None = None
 
     def targets(self, robot: Robot, expected: np.ndarray, best_path: np.ndarray, n_frontiers: int, n_revisits: int,
-                blocked) -> list[Target | None]:
+                blocked, keep_revisit=None) -> list[Target | None]:
         """The action slots, planned on ``expected`` plus the scan's obstacle layer (a wall the particles
         blur but the laser sees hides no frontier behind it), without targets near the ``blocked`` points
-        where earlier attempts ended. Recoveries when no target is left, as move_base clears its
+        where earlier attempts ended, and without the revisit targets ``keep_revisit`` (if given) turns
+        down (:func:`~emmi_gym.navigation.candidates.candidate_slots`). Recoveries when no target is left, as move_base clears its
         costmap when stuck: again with only cells of p > ``RECOVERY_BLOCKING_P`` as obstacles (a ghost
         wall of particles that disagree can shut the robot in a slot of its map), then both again with
         the blocked points forgotten (the one frontier left can lie by a point where an attempt ended
@@ -83,7 +84,8 @@ class MacroActionExecutor:
             for self.blocking_p in (BLOCKING_P, RECOVERY_BLOCKING_P):
                 self.costs = travel_costs(planning_map, self.geometry, pose[:2], self.limits.radius,
                                           blocking_p=self.blocking_p)
-                slots = candidate_slots(planning_map, best_path, self.costs, n_frontiers, n_revisits, avoided)
+                slots = candidate_slots(planning_map, best_path, self.costs, n_frontiers, n_revisits, avoided,
+                                        keep_revisit)
                 if any(slot is not None for slot in slots):
                     return slots
             if not blocked:

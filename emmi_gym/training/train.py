@@ -34,7 +34,7 @@ from ..concurrency.parallel import one_kernel_thread
 from ..experiments.loop_order import LoopOrderInfo
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument, sb3_policy_kwargs
-from .model_files import load_model_file
+from .model_files import check_model_file, load_model_file
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
@@ -266,9 +266,10 @@ def machine_description() -> str:
     return f"{name}, {os.cpu_count()} cores"
 
 
-def record_training(run_dir: Path, timesteps: int, wall_seconds: float) -> None:
+def record_training(run_dir: Path, timesteps: int, wall_seconds: float, init_from=None) -> None:
     """Write :data:`TRAINING_RECORD` into ``run_dir``: the steps, the wall time summed over the run's
-    parts (a resumed run adds to what its folder recorded), the date, the machine and the versions."""
+    parts (a resumed run adds to what its folder recorded), the date, the machine and the versions,
+    and the model the run started from (``init_from``), if any."""
     import torch
 
     from .. import __version__
@@ -279,6 +280,8 @@ def record_training(run_dir: Path, timesteps: int, wall_seconds: float) -> None:
               "wall_seconds": round(float(earlier.get("wall_seconds", 0.0)) + wall_seconds, 1),
               "finished": time.strftime("%Y-%m-%d %H:%M %Z"), "machine": machine_description(),
               "emmi_gym": __version__, "torch": str(torch.__version__)}
+    if init_from is not None or "init_from" in earlier:
+        record["init_from"] = str(init_from) if init_from is not None else earlier["init_from"]
     save_atomically(lambda target: Path(target).write_text(yaml.safe_dump(record, sort_keys=False)), path)
 
 
@@ -293,10 +296,13 @@ def load_run_config(model_path) -> AgentConfig:
 
 
 def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool = True,
-          verbose: int = 0, ray_address: str | None = None) -> TrainResult:
+          verbose: int = 0, ray_address: str | None = None, init_from=None) -> TrainResult:
     """Train ``config`` into ``run_dir`` (see the module docstring); with ``resume``, continue from the
     folder's latest checkpoint up to ``config.total_timesteps``; ``ray_address``: the Ray cluster of
-    ``vec_env: ray`` (see :func:`make_vec_env`)."""
+    ``vec_env: ray`` (see :func:`make_vec_env`). ``init_from``: a model (of the same algorithm, spaces
+    and network) whose weights a new run starts from, as rl-baselines3-zoo's ``--trained-agent``:
+    it trains on with this configuration's env and hyperparameters, and its decisions count towards
+    ``total_timesteps``."""
     from stable_baselines3.common.callbacks import CallbackList
 
     run_dir = Path(run_dir)
@@ -306,6 +312,8 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         raise FileNotFoundError(f"--resume: no checkpoint in {checkpoints}")
     if not resume and (run_dir / "model.zip").exists():
         raise FileExistsError(f"{run_dir} already holds a trained model: use --resume or another --out")
+    if init_from is not None and start is None:
+        init_from = check_model_file(init_from, config.algorithm)
     run_dir.mkdir(parents=True, exist_ok=True)
     with open(run_dir / "config.yaml", "w") as f:
         yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
@@ -325,8 +333,13 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         if config.discount_unit is not None:
             hyperparameters["rollout_buffer_class"] = rollout_buffer_class(
                 config.algorithm, isinstance(env.observation_space, gym.spaces.Dict))
-        model = cls(policy_argument(config.policy), env, seed=config.seed, tensorboard_log=str(run_dir / "tb"),
-                    verbose=verbose, **hyperparameters)
+        if init_from is not None:  # the network is the saved one's; every other setting this configuration's
+            hyperparameters.pop("policy_kwargs", None)
+            model = load_model_file(init_from, config.algorithm, env=env, seed=config.seed,
+                                    tensorboard_log=str(run_dir / "tb"), verbose=verbose, **hyperparameters)
+        else:
+            model = cls(policy_argument(config.policy), env, seed=config.seed, tensorboard_log=str(run_dir / "tb"),
+                        verbose=verbose, **hyperparameters)
     per_env = max(1, config.n_envs)
     evaluation = eval_callback_class(config.algorithm)(
         eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
@@ -346,10 +359,11 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
             # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
             warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
             model.learn(remaining, callback=CallbackList([StopOnInterrupt(interrupts), *callbacks]),
-                        progress_bar=progress, reset_num_timesteps=start is None, tb_log_name="run")
+                        progress_bar=progress, reset_num_timesteps=start is None and init_from is None,
+                        tb_log_name="run")
         with interrupts_deferred():
             model_path = save_atomically(model.save, run_dir / "model.zip")
-            record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started)
+            record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started, init_from)
     except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
         interrupted = True
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short
