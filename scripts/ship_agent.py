@@ -6,6 +6,8 @@ model card (configuration, budget, seed, training time, and its evaluation besid
 
 The evaluation is ``emmi-gym evaluate --pretrained NAME`` with the same options, on held-out seeds (and,
 with ``--world``, on the maps given, e.g. ``dungeon_maps/test``); the card says how to reproduce it.
+``--episodes-csv`` takes the episodes from ``emmi-gym evaluate --out`` files instead (run elsewhere, e.g.
+on a larger machine, named by ``--evaluated-on``), the model's rows named ``agent`` there.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import yaml
 
 from emmi_gym import pretrained
 from emmi_gym.experiments.comparison import markdown_table, policy_means
+from emmi_gym.experiments.report import read_csv
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.training.train import TRAINING_RECORD, load_run_config, machine_description
 
@@ -37,7 +40,13 @@ def main() -> None:
     parser.add_argument("--training-seconds", type=float, default=None,
                         help=f"wall time of training, for a run folder without {TRAINING_RECORD}")
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--episodes-csv", nargs="+", type=Path, default=None,
+                        help="episodes.csv files of 'emmi-gym evaluate --out' with these options, instead of evaluating")
+    parser.add_argument("--evaluated-on", default=None, help="the machine the --episodes-csv files were made on")
+    parser.add_argument("--note", default="", help="a paragraph for the card (e.g. what the run started from)")
     args = parser.parse_args()
+    if args.episodes_csv and not args.evaluated_on:
+        parser.error("--episodes-csv needs --evaluated-on")
     model = args.run / "model.zip"
     if not model.is_file():
         parser.error(f"no model.zip in {args.run}")
@@ -56,9 +65,18 @@ def main() -> None:
     config = load_run_config(folder / "model.zip")
 
     started = time.perf_counter()
-    rows = compare_model(folder / "model.zip", args.name, OWN_WORLD if args.world is None else args.world,
-                         args.episodes, args.seed, args.baselines, workers=args.workers)
-    minutes = (time.perf_counter() - started) / 60
+    if args.episodes_csv:
+        rows = [dict(row, policy=args.name if row["policy"] == "agent" else row["policy"])
+                for path in args.episodes_csv for row in read_csv(path)]
+        found = {policy: sum(r["policy"] == policy for r in rows) for policy in [args.name, *args.baselines]}
+        if any(count != args.episodes for count in found.values()):
+            parser.error(f"--episodes-csv: expected {args.episodes} episodes of each policy, found {found}")
+        evaluated_on = args.evaluated_on
+    else:
+        rows = compare_model(folder / "model.zip", args.name, OWN_WORLD if args.world is None else args.world,
+                             args.episodes, args.seed, args.baselines, workers=args.workers)
+        minutes = (time.perf_counter() - started) / 60
+        evaluated_on = f"{machine_description()} ({minutes:.0f} min)"
     means = policy_means(rows)
     tables = [markdown_table(rows, args.name, b, f"{args.name} - {b}") for b in args.baselines]
 
@@ -74,7 +92,7 @@ def main() -> None:
 - Budget: {config.total_timesteps} decisions, seed {config.seed}, {config.n_envs} envs.
 - Training time: {seconds / 60:.1f} min of wall time on {trained_on}.
 - Load it: `model = emmi_gym.pretrained.load("{args.name}")`; play it: `{command}`.
-
+{f"{chr(10)}{args.note}{chr(10)}" if args.note else ""}
 ## Configuration
 
 ```yaml
@@ -85,7 +103,7 @@ def main() -> None:
 
 {args.episodes} held-out episodes (seeds from {args.seed}{f', maps of {args.world}' if args.world else ''}), the
 scripted baselines on the same episodes; measured on {time.strftime('%Y-%m-%d')} at commit {commit} on
-{machine_description()} ({minutes:.0f} min). Reproduce: `{command}`.
+{evaluated_on}. Reproduce: `{command}`.
 
 Means over episodes:
 

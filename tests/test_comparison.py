@@ -3,6 +3,7 @@
 import numpy as np
 
 from emmi_gym.experiments.comparison import ComparisonSettings, compare, markdown_table, paired, plot_pair, run_episode
+from emmi_gym.experiments.report import read_csv, write_csv
 from emmi_gym.world.map_sets import map_set_files
 
 
@@ -23,6 +24,11 @@ def test_policies_are_paired_by_world_and_seed(tmp_path):
     assert again["ate"] == rows[0]["ate"] and again["oracle_accuracy"] == rows[0]["oracle_accuracy"]
     plot_pair([again, run_episode(worlds[0], 0, "active_loop_closing", settings, keep_maps=True)],
               tmp_path / "maps.png")
+    write_csv(tmp_path / "episodes.csv", rows)  # what 'emmi-gym evaluate --out' writes reads back the same
+    def nan_as_text(rows):
+        return [{k: "nan" if isinstance(v, float) and np.isnan(v) else v for k, v in r.items()} for r in rows]
+
+    assert nan_as_text(read_csv(tmp_path / "episodes.csv")) == nan_as_text(rows)
     assert (tmp_path / "maps.png").stat().st_size > 10_000
 
 

@@ -126,11 +126,32 @@ def markdown_summary(rows: list[dict], settings_text: str) -> str:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
+    """``rows`` as a CSV file with a header of every key any row has (an empty cell where a row lacks one)."""
     columns = list(dict.fromkeys(k for row in rows for k in row))
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=columns)
         writer.writeheader()
         writer.writerows(rows)
+
+
+def read_csv(path) -> list[dict]:
+    """The rows :func:`write_csv` wrote, numbers as floats (``seed`` and ``decisions`` as ints), text as text,
+    an empty cell as NaN."""
+    def value(text: str):
+        if text == "":
+            return np.nan
+        try:
+            return float(text)
+        except ValueError:
+            return text
+
+    with open(path, newline="") as f:
+        rows = [{key: value(text) for key, text in row.items()} for row in csv.DictReader(f)]
+    for row in rows:
+        for key in ("seed", "decisions"):
+            if isinstance(row.get(key), float) and np.isfinite(row[key]):
+                row[key] = int(row[key])
+    return rows
 
 
 def update_rows(runs: list[ABRun]) -> list[dict]:
