@@ -206,6 +206,36 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_clone(args: argparse.Namespace) -> int:
+    import yaml
+
+    from .inputs.paths import output_folder
+    from .training.config import load_agent_config
+    from .policies import POLICY_NAMES
+    from .training.imitation import Demonstrations, agreement, clone_run, collect_demonstrations
+
+    if args.policy not in POLICY_NAMES:
+        raise ValueError(f"--policy: unknown {args.policy!r}; choose from {list(POLICY_NAMES)}")
+    out = output_folder(args.out)
+    config = load_agent_config(args.config)
+    if args.demos:
+        demonstrations = Demonstrations.joined([Demonstrations.load(path) for path in args.demos])
+    else:
+        demonstrations = collect_demonstrations(config, args.policy, args.episodes, args.seed, workers=args.workers,
+                                                progress=not args.quiet)
+        demonstrations.save(out / "demonstrations.npz")
+    print(f"{len(demonstrations)} decisions of {args.policy} in {demonstrations.episodes} episodes")
+    model_path, losses, model = clone_run(config, demonstrations, out, epochs=args.epochs)
+    record = {"policy": args.policy, "episodes": demonstrations.episodes, "decisions": len(demonstrations),
+              "epochs": args.epochs, "losses": [round(loss, 4) for loss in losses],
+              "agreement": round(agreement(model, demonstrations), 4)}
+    (out / "clone.yaml").write_text(yaml.safe_dump(record, sort_keys=False))
+    print(f"loss {losses[0]:.3f} -> {losses[-1]:.3f}; the model takes the demonstrated action at "
+          f"{record['agreement']:.1%} of the decisions. Wrote {model_path}; train on with: emmi-gym train "
+          f"{args.config} --init-from {model_path}")
+    return 0
+
+
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from .experiments.episodes import summarise
     from .inputs.paths import output_folder
@@ -351,6 +381,20 @@ def build_parser() -> argparse.ArgumentParser:
     _torch_threads_option(tr, "1 beside env subprocesses, which need the cores; one per core when the envs "
                               "run in this process")
     tr.set_defaults(func=_cmd_train)
+
+    cl = sub.add_parser("clone", help="behaviour cloning: fit a configuration's model to a scripted policy's "
+                                      "decisions, a warm start for 'train --init-from'")
+    cl.add_argument("config", help="agent configuration (.yaml) of a waypoint env, e.g. agents/ppo_plans_emmi.yaml")
+    cl.add_argument("--policy", default="active_loop_closing", help="the scripted policy (default active_loop_closing)")
+    cl.add_argument("--episodes", type=_integer(1), default=64, help="demonstration episodes in the training env")
+    cl.add_argument("--seed", type=_SEED, default=300000, help="first demonstration episode's seed")
+    cl.add_argument("--demos", nargs="+", default=None, metavar="NPZ",
+                    help="demonstrations.npz files to fit instead of playing episodes")
+    cl.add_argument("--epochs", type=_integer(1), default=20)
+    cl.add_argument("--workers", type=_integer(1), default=None, help="worker processes (default one per core)")
+    cl.add_argument("--out", required=True, help="folder for model.zip, config.yaml, demonstrations.npz, clone.yaml")
+    cl.add_argument("--quiet", action="store_true", help="no progress bar")
+    cl.set_defaults(func=_cmd_clone)
 
     ev = sub.add_parser("evaluate", help="run a trained model on held-out episodes: return and ground-truth "
                                          "metrics, beside the scripted baselines on the same episodes if asked")

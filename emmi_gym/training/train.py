@@ -295,6 +295,24 @@ def load_run_config(model_path) -> AgentConfig:
                             f"'emmi-gym train'?")
 
 
+def sb3_hyperparameters(config: AgentConfig, env) -> dict:
+    """The keywords of ``config``'s SB3 algorithm for a model on ``env``: its hyperparameters, the policy's
+    keywords as SB3 takes them, and the semi-Markov rollout buffer where ``discount_unit`` is set."""
+    hyperparameters = copy.deepcopy(config.hyperparameters)  # SB3 adds to policy_kwargs in place
+    if hyperparameters.get("policy_kwargs"):
+        hyperparameters["policy_kwargs"] = sb3_policy_kwargs(hyperparameters["policy_kwargs"])
+    if config.discount_unit is not None:
+        hyperparameters["rollout_buffer_class"] = rollout_buffer_class(
+            config.algorithm, isinstance(env.observation_space, gym.spaces.Dict))
+    return hyperparameters
+
+
+def model_of(config: AgentConfig, env, **kwargs):
+    """A fresh SB3 model of ``config`` (algorithm, policy, hyperparameters, seed) on ``env``; ``kwargs`` to SB3."""
+    return algorithm_class(config.algorithm)(policy_argument(config.policy), env, seed=config.seed,
+                                             **kwargs, **sb3_hyperparameters(config, env))
+
+
 def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool = True,
           verbose: int = 0, ray_address: str | None = None, init_from=None) -> TrainResult:
     """Train ``config`` into ``run_dir`` (see the module docstring); with ``resume``, continue from the
@@ -320,26 +338,18 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
 
     env = make_vec_env(config, config.n_envs, config.seed, config.vec_env, ray_address=ray_address)
     eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True)
-    cls = algorithm_class(config.algorithm)
     if start is not None:
         model = load_model_file(start, config.algorithm, env=env, tensorboard_log=str(run_dir / "tb"))
         buffer = start.with_name(start.name.replace("model_", "model_replay_buffer_").replace(".zip", ".pkl"))
         if config.algorithm in OFF_POLICY and buffer.exists():
             model.load_replay_buffer(buffer)
+    elif init_from is not None:  # the network is the saved one's; every other setting this configuration's
+        hyperparameters = sb3_hyperparameters(config, env)
+        hyperparameters.pop("policy_kwargs", None)
+        model = load_model_file(init_from, config.algorithm, env=env, seed=config.seed,
+                                tensorboard_log=str(run_dir / "tb"), verbose=verbose, **hyperparameters)
     else:
-        hyperparameters = copy.deepcopy(config.hyperparameters)  # SB3 adds to policy_kwargs in place
-        if hyperparameters.get("policy_kwargs"):
-            hyperparameters["policy_kwargs"] = sb3_policy_kwargs(hyperparameters["policy_kwargs"])
-        if config.discount_unit is not None:
-            hyperparameters["rollout_buffer_class"] = rollout_buffer_class(
-                config.algorithm, isinstance(env.observation_space, gym.spaces.Dict))
-        if init_from is not None:  # the network is the saved one's; every other setting this configuration's
-            hyperparameters.pop("policy_kwargs", None)
-            model = load_model_file(init_from, config.algorithm, env=env, seed=config.seed,
-                                    tensorboard_log=str(run_dir / "tb"), verbose=verbose, **hyperparameters)
-        else:
-            model = cls(policy_argument(config.policy), env, seed=config.seed, tensorboard_log=str(run_dir / "tb"),
-                        verbose=verbose, **hyperparameters)
+        model = model_of(config, env, tensorboard_log=str(run_dir / "tb"), verbose=verbose)
     per_env = max(1, config.n_envs)
     evaluation = eval_callback_class(config.algorithm)(
         eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,

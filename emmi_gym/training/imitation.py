@@ -1,0 +1,152 @@
+"""Behaviour cloning from a scripted policy: a warm start for reinforcement learning.
+
+:func:`collect_demonstrations` plays a scripted policy of :mod:`emmi_gym.policies` (for instance
+``active_loop_closing``) in an agent configuration's training env and records, at every decision,
+the observation, the action masks and the action taken. :func:`clone` fits a fresh model of the
+configuration to them by maximum likelihood: it minimises the negative log-probability of the
+demonstrated action under the policy, the masked slots excluded (Pomerleau's behaviour cloning;
+the same loss as the ``imitation`` library's BC, which passes no action masks). The model is saved
+as a run that ``emmi-gym train CONFIG --init-from MODEL`` continues with RL (``emmi-gym clone``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..concurrency.parallel import run_in_processes
+from .config import AgentConfig
+
+
+@dataclass
+class Demonstrations:
+    """Decisions of a scripted policy: ``observations`` (a dict of stacked arrays), ``masks`` (bool,
+    decisions x actions) and ``actions`` (int64); ``episodes`` played."""
+
+    observations: dict[str, np.ndarray]
+    masks: np.ndarray
+    actions: np.ndarray
+    episodes: int
+
+    def __len__(self) -> int:
+        return len(self.actions)
+
+    def save(self, path) -> None:
+        """Write to ``path`` (a compressed ``.npz``)."""
+        np.savez_compressed(path, masks=self.masks, actions=self.actions, episodes=self.episodes,
+                            **{f"obs_{key}": value for key, value in self.observations.items()})
+
+    @classmethod
+    def load(cls, path) -> Demonstrations:
+        with np.load(path) as data:
+            observations = {key[4:]: data[key] for key in data.files if key.startswith("obs_")}
+            return cls(observations, data["masks"], data["actions"], int(data["episodes"]))
+
+    @classmethod
+    def joined(cls, parts: list[Demonstrations]) -> Demonstrations:
+        """The decisions of every part, in order."""
+        keys = parts[0].observations
+        return cls({key: np.concatenate([p.observations[key] for p in parts]) for key in keys},
+                   np.concatenate([p.masks for p in parts]), np.concatenate([p.actions for p in parts]),
+                   sum(p.episodes for p in parts))
+
+
+def _demonstration(job) -> tuple[int, Demonstrations]:
+    """One episode of the scripted policy in ``gym.make(env_id, **env_kwargs)`` with ``seed``: (seed, its decisions)."""
+    import gymnasium as gym
+
+    from ..policies import make_policy
+
+    env_id, env_kwargs, policy_name, seed = job
+    env = gym.make(env_id, **env_kwargs)
+    core, policy = env.unwrapped, make_policy(policy_name)
+    policy.reset(seed)
+    observation, _ = env.reset(seed=seed)
+    observations, masks, actions = [], [], []
+    done = False
+    while not done:
+        masks.append(core.action_masks())
+        observations.append(observation)
+        actions.append(policy(env))
+        observation, _, terminated, truncated, _ = env.step(actions[-1])
+        done = terminated or truncated
+    env.close()
+    return seed, Demonstrations({key: np.stack([o[key] for o in observations]) for key in observations[0]},
+                                np.array(masks, dtype=bool), np.array(actions, dtype=np.int64), 1)
+
+
+def collect_demonstrations(config: AgentConfig, policy: str, episodes: int, seed: int, *,
+                           workers: int | None = None, progress: bool = True) -> Demonstrations:
+    """``episodes`` episodes of the scripted ``policy`` in ``config``'s training env (its id and keywords),
+    seeded ``seed``, ``seed + 1``...; in ``workers`` processes, joined in the order of their seeds. Needs
+    a waypoint env (action masks)."""
+    jobs = [(config.env_id, dict(config.env_kwargs), policy, seed + k) for k in range(episodes)]
+    parts = run_in_processes(_demonstration, jobs, workers=workers, desc="demonstrations", progress=progress)
+    return Demonstrations.joined([part for _, part in sorted(parts, key=lambda part: part[0])])
+
+
+def clone(model, demonstrations: Demonstrations, *, epochs: int = 20, batch_size: int = 256,
+          learning_rate: float = 1e-3, seed: int = 0) -> list[float]:
+    """Fit ``model``'s policy (a MaskablePPO model) to ``demonstrations`` by maximum likelihood: Adam on
+    the mean negative log-probability of the demonstrated actions, masked slots excluded, over
+    ``epochs`` shuffled passes; the mean loss of each epoch. The critic is left as it is."""
+    import torch as th
+
+    policy = model.policy
+    policy.set_training_mode(True)
+    optimizer = th.optim.Adam(policy.parameters(), lr=learning_rate)
+    generator = np.random.default_rng(seed)
+    n = len(demonstrations)
+    losses = []
+    for _ in range(epochs):
+        order, total = generator.permutation(n), 0.0
+        for start in range(0, n, batch_size):
+            batch = order[start:start + batch_size]
+            observations, _ = policy.obs_to_tensor({key: value[batch]
+                                                    for key, value in demonstrations.observations.items()})
+            actions = th.as_tensor(demonstrations.actions[batch], device=policy.device)
+            _, log_prob, _ = policy.evaluate_actions(observations, actions,
+                                                     action_masks=demonstrations.masks[batch])
+            loss = -log_prob.mean()
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            total += loss.item() * len(batch)
+        losses.append(total / n)
+    policy.set_training_mode(False)
+    return losses
+
+
+def agreement(model, demonstrations: Demonstrations) -> float:
+    """The share of demonstrated decisions where ``model``'s deterministic action is the demonstrated one."""
+    actions, _ = model.predict(dict(demonstrations.observations), deterministic=True,
+                               action_masks=demonstrations.masks)
+    return float(np.mean(np.asarray(actions) == demonstrations.actions))
+
+
+def cloned_model(config: AgentConfig, demonstrations: Demonstrations, **fit):
+    """A fresh model of ``config`` (its algorithm, policy and hyperparameters) fitted by :func:`clone`; the
+    model and the losses per epoch."""
+    from .train import make_vec_env, model_of
+
+    env = make_vec_env(config, 1, config.seed, "dummy")
+    try:
+        model = model_of(config, env)
+        return model, clone(model, demonstrations, seed=config.seed, **fit)
+    finally:
+        env.close()
+
+
+def clone_run(config: AgentConfig, demonstrations: Demonstrations, run_dir, **fit) -> Path:
+    """Write a run folder that ``emmi-gym train --init-from`` continues: ``model.zip``, ``config.yaml``."""
+    import yaml
+
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    model, losses = cloned_model(config, demonstrations, **fit)
+    model.save(run_dir / "model.zip")
+    with open(run_dir / "config.yaml", "w") as f:
+        yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
+    return run_dir / "model.zip", losses, model
