@@ -68,6 +68,7 @@ def main() -> None:
     if args.episodes_csv:
         rows = [dict(row, policy=args.name if row["policy"] == "agent" else row["policy"])
                 for path in args.episodes_csv for row in read_csv(path)]
+        rows = [row for row in rows if row["policy"] in (args.name, *args.baselines)]
         found = {policy: sum(r["policy"] == policy for r in rows) for policy in [args.name, *args.baselines]}
         if any(count != args.episodes for count in found.values()):
             parser.error(f"--episodes-csv: expected {args.episodes} episodes of each policy, found {found}")
