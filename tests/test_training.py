@@ -438,3 +438,24 @@ def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisio
     with pytest.raises(ModelFileError, match="a MaskablePPO model"):
         train(parse_agent_config(config_dict("MaskablePPO", {"velocity_actions": "discrete"}, hyper)),
               tmp_path / "other", progress=False, init_from=first.model_path)
+
+
+def test_a_run_from_init_from_interrupted_and_resumed_still_names_its_start(tmp_path, monkeypatch):
+    from emmi_gym.training.train import AtomicCheckpointCallback
+
+    hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
+    first = train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=32)), tmp_path / "first",
+                  progress=False)
+    original = AtomicCheckpointCallback._on_step
+
+    def interrupt(self):
+        if self.num_timesteps >= 64:
+            raise KeyboardInterrupt
+        return original(self)
+
+    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", interrupt)
+    config = parse_agent_config(config_dict("PPO", hyper=hyper))
+    assert train(config, tmp_path / "run", progress=False, init_from=first.model_path).interrupted
+    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", original)
+    train(config, tmp_path / "run", resume=True, progress=False)
+    assert yaml.safe_load((tmp_path / "run" / "training.yaml").read_text())["init_from"] == str(first.model_path)

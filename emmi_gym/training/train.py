@@ -348,6 +348,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         hyperparameters.pop("policy_kwargs", None)
         model = load_model_file(init_from, config.algorithm, env=env, seed=config.seed,
                                 tensorboard_log=str(run_dir / "tb"), verbose=verbose, **hyperparameters)
+        record_training(run_dir, int(model.num_timesteps), 0.0, init_from)  # a resumed run still names it
     else:
         model = model_of(config, env, tensorboard_log=str(run_dir / "tb"), verbose=verbose)
     per_env = max(1, config.n_envs)
