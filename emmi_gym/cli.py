@@ -210,8 +210,8 @@ def _cmd_clone(args: argparse.Namespace) -> int:
     import yaml
 
     from .inputs.paths import output_folder
-    from .training.config import load_agent_config
     from .policies import POLICY_NAMES
+    from .training.config import load_agent_config
     from .training.imitation import Demonstrations, agreement, clone_run, collect_demonstrations
 
     if args.policy not in POLICY_NAMES:

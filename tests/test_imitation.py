@@ -43,3 +43,22 @@ def test_clone_command_writes_a_run_that_train_init_from_continues(tmp_path):
     assert main(["train", str(tmp_path / "agent.yaml"), "--init-from", str(tmp_path / "bc" / "model.zip"),
                  "--out", str(tmp_path / "rl"), "--quiet"]) == 0
     assert yaml.safe_load((tmp_path / "rl" / "training.yaml").read_text())["init_from"].endswith("model.zip")
+
+
+def test_bad_demonstrations_and_a_velocity_env_are_clear_errors(tmp_path):
+    import pytest
+
+    (tmp_path / "text.npz").write_text("not a zip")
+    with pytest.raises(ValueError, match=r"text\.npz: expected demonstrations written by 'emmi-gym clone'"):
+        Demonstrations.load(tmp_path / "text.npz")
+    np.savez(tmp_path / "short.npz", masks=np.ones((2, 8), bool), actions=np.zeros(3, np.int64), episodes=1,
+             obs_map=np.zeros((3, 2, 64, 64), np.uint8))
+    with pytest.raises(ValueError, match=r"short\.npz: expected as many masks and observations as actions \(3\)"):
+        Demonstrations.load(tmp_path / "short.npz")
+    other = Demonstrations({"map": np.zeros((1, 1, 8, 8), np.uint8)}, np.ones((1, 8), bool), np.zeros(1, np.int64), 1)
+    with pytest.raises(ValueError, match="observations of shapes"):
+        cloned_model(parse_agent_config(CONFIG), other, epochs=1)
+    velocity = dict(CONFIG, env={"id": "emmi_gym/ExploreVelocity-v0", "kwargs": {"particles": 3}},
+                    policy="MultiInputPolicy", algorithm="PPO")
+    with pytest.raises(ValueError, match="need a waypoint env"):
+        collect_demonstrations(parse_agent_config(velocity), "frontier", 1, 0, workers=1, progress=False)

@@ -72,9 +72,9 @@ class MacroActionExecutor:
         """The action slots, planned on ``expected`` plus the scan's obstacle layer (a wall the particles
         blur but the laser sees hides no frontier behind it), without targets near the ``blocked`` points
         where earlier attempts ended, and without the revisit targets ``keep_revisit`` (if given) turns
-        down (:func:`~emmi_gym.navigation.candidates.candidate_slots`). Recoveries when no target is left, as move_base clears its
-        costmap when stuck: again with only cells of p > ``RECOVERY_BLOCKING_P`` as obstacles (a ghost
-        wall of particles that disagree can shut the robot in a slot of its map), then both again with
+        down (:func:`~emmi_gym.navigation.candidates.candidate_slots`). Recoveries when no target is
+        left, as move_base clears its costmap when stuck: again with only cells of p >
+        ``RECOVERY_BLOCKING_P`` as obstacles (a ghost wall of particles that disagree can shut the robot in a slot of its map), then both again with
         the blocked points forgotten (the one frontier left can lie by a point where an attempt ended
         blocked before the map showed the way; without it the robot would stand still to the end of
         the episode)."""

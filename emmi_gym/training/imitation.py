@@ -11,13 +11,19 @@ as a run that ``emmi-gym train CONFIG --init-from MODEL`` continues with RL (``e
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..concurrency.parallel import run_in_processes
+from ..inputs.paths import input_file
 from .config import AgentConfig
+
+
+#: The most a demonstrations file may unpack to (100,000 decisions of the 64 x 64 plans observation take 0.8 GiB).
+MAX_DEMONSTRATION_BYTES = 4 * 2**30
 
 
 @dataclass
@@ -40,9 +46,31 @@ class Demonstrations:
 
     @classmethod
     def load(cls, path) -> Demonstrations:
-        with np.load(path) as data:
-            observations = {key[4:]: data[key] for key in data.files if key.startswith("obs_")}
-            return cls(observations, data["masks"], data["actions"], int(data["episodes"]))
+        """The demonstrations :meth:`save` wrote to ``path``; a ``ValueError`` naming the file otherwise."""
+        path = input_file(path, "demonstrations file")
+        try:
+            with zipfile.ZipFile(path) as archive:
+                unpacked = sum(member.file_size for member in archive.infolist())
+            if unpacked > MAX_DEMONSTRATION_BYTES:
+                raise ValueError(f"at most {MAX_DEMONSTRATION_BYTES // 2**30} GiB unpacked, and its arrays would "
+                                 f"take {unpacked / 2**30:,.1f} GiB")
+            with np.load(path) as data:
+                observations = {key[4:]: data[key] for key in data.files if key.startswith("obs_")}
+                demonstrations = cls(observations, data["masks"], data["actions"], int(data["episodes"]))
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"{path}: expected demonstrations written by 'emmi-gym clone' (an .npz with masks, "
+                             f"actions, episodes and obs_* arrays): {type(exc).__name__}: {exc}") from None
+        n = len(demonstrations.actions)
+        if not observations or any(len(v) != n for v in (demonstrations.masks, *observations.values())):
+            raise ValueError(f"{path}: expected as many masks and observations as actions ({n})")
+        return demonstrations
+
+    def check_fits(self, observation_space, where: str = "the demonstrations") -> None:
+        """A ``ValueError`` unless the observations have the keys and shapes of ``observation_space`` (a Dict)."""
+        shapes = {key: value.shape[1:] for key, value in self.observations.items()}
+        wanted = {key: space.shape for key, space in observation_space.spaces.items()}
+        if shapes != wanted:
+            raise ValueError(f"{where}: observations of shapes {shapes}; the configuration's env gives {wanted}")
 
     @classmethod
     def joined(cls, parts: list[Demonstrations]) -> Demonstrations:
@@ -82,6 +110,12 @@ def collect_demonstrations(config: AgentConfig, policy: str, episodes: int, seed
     """``episodes`` episodes of the scripted ``policy`` in ``config``'s training env (its id and keywords),
     seeded ``seed``, ``seed + 1``...; in ``workers`` processes, joined in the order of their seeds. Needs
     a waypoint env (action masks)."""
+    import gymnasium as gym
+
+    options = {**gym.spec(config.env_id).kwargs, **config.env_kwargs}
+    if options.get("action_mode", "waypoint") != "waypoint":
+        raise ValueError(f"{config.env_id} with action_mode {options['action_mode']!r}: the scripted policies "
+                         "choose target slots, so demonstrations need a waypoint env")
     jobs = [(config.env_id, dict(config.env_kwargs), policy, seed + k) for k in range(episodes)]
     parts = run_in_processes(_demonstration, jobs, workers=workers, desc="demonstrations", progress=progress)
     return Demonstrations.joined([part for _, part in sorted(parts, key=lambda part: part[0])])
@@ -133,14 +167,19 @@ def cloned_model(config: AgentConfig, demonstrations: Demonstrations, **fit):
 
     env = make_vec_env(config, 1, config.seed, "dummy")
     try:
+        demonstrations.check_fits(env.observation_space)
+        if demonstrations.masks.shape[1] != env.action_space.n:
+            raise ValueError(f"the demonstrations have {demonstrations.masks.shape[1]} actions; the "
+                             f"configuration's env {env.action_space}")
         model = model_of(config, env)
         return model, clone(model, demonstrations, seed=config.seed, **fit)
     finally:
         env.close()
 
 
-def clone_run(config: AgentConfig, demonstrations: Demonstrations, run_dir, **fit) -> Path:
-    """Write a run folder that ``emmi-gym train --init-from`` continues: ``model.zip``, ``config.yaml``."""
+def clone_run(config: AgentConfig, demonstrations: Demonstrations, run_dir, **fit):
+    """Write a run folder that ``emmi-gym train --init-from`` continues (``model.zip``, ``config.yaml``);
+    the model's path, the losses per epoch and the model."""
     import yaml
 
     run_dir = Path(run_dir)
