@@ -74,10 +74,10 @@ class MacroActionExecutor:
         where earlier attempts ended, and without the revisit targets ``keep_revisit`` (if given) turns
         down (:func:`~emmi_gym.navigation.candidates.candidate_slots`). Recoveries when no target is
         left, as move_base clears its costmap when stuck: again with only cells of p >
-        ``RECOVERY_BLOCKING_P`` as obstacles (a ghost wall of particles that disagree can shut the robot in a slot of its map), then both again with
-        the blocked points forgotten (the one frontier left can lie by a point where an attempt ended
-        blocked before the map showed the way; without it the robot would stand still to the end of
-        the episode)."""
+        ``RECOVERY_BLOCKING_P`` as obstacles (a ghost wall of particles that disagree can shut the
+        robot in a slot of its map), then both again with the blocked points forgotten (the one
+        frontier left can lie by a point where an attempt ended blocked before the map showed the
+        way; without it the robot would stand still to the end of the episode)."""
         pose = robot.pose_estimate()
         planning_map = with_scan_layer(expected.copy(), self.scan_layer(robot, pose))
         for avoided in (blocked, ()):
