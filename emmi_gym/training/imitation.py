@@ -2,11 +2,12 @@
 
 :func:`collect_demonstrations` plays a scripted policy of :mod:`emmi_gym.policies` (for instance
 ``active_loop_closing``) in an agent configuration's training env and records, at every decision,
-the observation, the action masks and the action taken. :func:`clone` fits a fresh model of the
-configuration to them by maximum likelihood: it minimises the negative log-probability of the
-demonstrated action under the policy, the masked slots excluded (Pomerleau's behaviour cloning;
-the same loss as the ``imitation`` library's BC, which passes no action masks). The model is saved
-as a run that ``emmi-gym train CONFIG --init-from MODEL`` continues with RL (``emmi-gym clone``).
+the observation, the action masks and the action taken. :func:`clone` fits a model's policy to
+them by maximum likelihood: it minimises the negative log-probability of the demonstrated action
+under the policy, the masked slots excluded (Pomerleau's behaviour cloning; the same loss as the
+``imitation`` library's BC, which passes no action masks). :func:`clone_run` fits a fresh model of
+a configuration and saves it as a run that ``emmi-gym train CONFIG --init-from MODEL`` continues
+with RL (``emmi-gym clone``).
 """
 
 from __future__ import annotations
@@ -63,6 +64,10 @@ class Demonstrations:
         n = len(demonstrations.actions)
         if not observations or any(len(v) != n for v in (demonstrations.masks, *observations.values())):
             raise ValueError(f"{path}: expected as many masks and observations as actions ({n})")
+        masks, actions = demonstrations.masks, demonstrations.actions
+        if masks.ndim != 2 or not np.all((actions >= 0) & (actions < masks.shape[1])) or \
+                not masks[np.arange(n), np.clip(actions, 0, masks.shape[1] - 1)].all():
+            raise ValueError(f"{path}: expected every action to be a slot its mask allows")
         return demonstrations
 
     def check_fits(self, observation_space, where: str = "the demonstrations") -> None:
