@@ -74,22 +74,29 @@ def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
     assert len(videos) == 1 and videos[0].stat().st_size > 0
 
 
-def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
+def interrupt_training_at(monkeypatch, timesteps: int):
+    """Make training raise KeyboardInterrupt (as Ctrl-C does) once ``timesteps`` are trained; call the
+    returned function to let it run on."""
     from emmi_gym.training.train import AtomicCheckpointCallback
 
     original = AtomicCheckpointCallback._on_step
 
     def interrupt(self):
-        if self.num_timesteps >= 40:
+        if self.num_timesteps >= timesteps:
             raise KeyboardInterrupt
         return original(self)
 
     monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", interrupt)
+    return lambda: monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", original)
+
+
+def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
+    run_on = interrupt_training_at(monkeypatch, 40)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
     stopped = train(config, tmp_path, progress=False)
     assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path)
     assert not (tmp_path / "model.zip").exists()
-    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", original)
+    run_on()
     finished = train(config, tmp_path, resume=True, progress=False)
     assert finished.timesteps >= 96 and (tmp_path / "model.zip").exists()
 
@@ -441,21 +448,12 @@ def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisio
 
 
 def test_a_run_from_init_from_interrupted_and_resumed_still_names_its_start(tmp_path, monkeypatch):
-    from emmi_gym.training.train import AtomicCheckpointCallback
-
     hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
     first = train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=32)), tmp_path / "first",
                   progress=False)
-    original = AtomicCheckpointCallback._on_step
-
-    def interrupt(self):
-        if self.num_timesteps >= 64:
-            raise KeyboardInterrupt
-        return original(self)
-
-    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", interrupt)
+    run_on = interrupt_training_at(monkeypatch, 64)
     config = parse_agent_config(config_dict("PPO", hyper=hyper))
     assert train(config, tmp_path / "run", progress=False, init_from=first.model_path).interrupted
-    monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", original)
+    run_on()
     train(config, tmp_path / "run", resume=True, progress=False)
     assert yaml.safe_load((tmp_path / "run" / "training.yaml").read_text())["init_from"] == str(first.model_path)
