@@ -212,12 +212,13 @@ def _cmd_clone(args: argparse.Namespace) -> int:
     from .inputs.paths import output_folder
     from .policies import POLICY_NAMES
     from .training.config import load_agent_config
-    from .training.imitation import Demonstrations, agreement, clone_run, collect_demonstrations
+    from .training.imitation import Demonstrations, agreement, check_cloneable, clone_run, collect_demonstrations
 
     if args.policy not in POLICY_NAMES:
         raise ValueError(f"--policy: unknown {args.policy!r}; choose from {list(POLICY_NAMES)}")
     out = output_folder(args.out)
     config = load_agent_config(args.config)
+    check_cloneable(config)  # before any episode is played
     if args.demos:
         demonstrations = Demonstrations.joined([Demonstrations.load(path) for path in args.demos])
     else:

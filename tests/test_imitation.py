@@ -66,3 +66,6 @@ def test_bad_demonstrations_and_a_velocity_env_are_clear_errors(tmp_path):
                     policy="MultiInputPolicy", algorithm="PPO")
     with pytest.raises(ValueError, match="need a waypoint env"):
         collect_demonstrations(parse_agent_config(velocity), "frontier", 1, 0, workers=1, progress=False)
+    dqn = dict(CONFIG, algorithm="DQN", policy="MultiInputPolicy", hyperparameters={"learning_starts": 8})
+    with pytest.raises(ValueError, match="algorithm DQN: behaviour cloning fits a MaskablePPO policy"):
+        collect_demonstrations(parse_agent_config(dqn), "frontier", 1, 0, workers=1, progress=False)

@@ -8,6 +8,7 @@ first. Empty slots are masked.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import islice
 
 import numpy as np
 from scipy import ndimage
@@ -127,7 +128,7 @@ def candidate_slots(expected_map: np.ndarray, path: np.ndarray, costs: CostMap, 
         return all(np.hypot(t.x - bx, t.y - by) > BLOCKED_RADIUS for bx, by in blocked)
 
     frontiers = [t for t in frontier_targets(expected_map, costs) if open_(t)][:n_frontiers]
-    revisits = [t for t in revisit_targets(path, costs) if open_(t) and (keep_revisit is None or keep_revisit(t))]
-    revisits = revisits[:n_revisits]
+    revisits = list(islice((t for t in revisit_targets(path, costs)
+                            if open_(t) and (keep_revisit is None or keep_revisit(t))), n_revisits))
     return (frontiers + [None] * (n_frontiers - len(frontiers))
             + revisits + [None] * (n_revisits - len(revisits)))

@@ -115,12 +115,7 @@ def collect_demonstrations(config: AgentConfig, policy: str, episodes: int, seed
     """``episodes`` episodes of the scripted ``policy`` in ``config``'s training env (its id and keywords),
     seeded ``seed``, ``seed + 1``...; in ``workers`` processes, joined in the order of their seeds. Needs
     a waypoint env (action masks)."""
-    import gymnasium as gym
-
-    options = {**gym.spec(config.env_id).kwargs, **config.env_kwargs}
-    if options.get("action_mode", "waypoint") != "waypoint":
-        raise ValueError(f"{config.env_id} with action_mode {options['action_mode']!r}: the scripted policies "
-                         "choose target slots, so demonstrations need a waypoint env")
+    check_cloneable(config)
     jobs = [(config.env_id, dict(config.env_kwargs), policy, seed + k) for k in range(episodes)]
     parts = run_in_processes(_demonstration, jobs, workers=workers, desc="demonstrations", progress=progress)
     return Demonstrations.joined([part for _, part in sorted(parts, key=lambda part: part[0])])
@@ -158,11 +153,29 @@ def clone(model, demonstrations: Demonstrations, *, epochs: int = 20, batch_size
     return losses
 
 
-def agreement(model, demonstrations: Demonstrations) -> float:
+def agreement(model, demonstrations: Demonstrations, batch_size: int = 1024) -> float:
     """The share of demonstrated decisions where ``model``'s deterministic action is the demonstrated one."""
-    actions, _ = model.predict(dict(demonstrations.observations), deterministic=True,
-                               action_masks=demonstrations.masks)
-    return float(np.mean(np.asarray(actions) == demonstrations.actions))
+    taken = []
+    for start in range(0, len(demonstrations), batch_size):
+        part = slice(start, start + batch_size)
+        actions, _ = model.predict({key: value[part] for key, value in demonstrations.observations.items()},
+                                   deterministic=True, action_masks=demonstrations.masks[part])
+        taken.append(np.asarray(actions))
+    return float(np.mean(np.concatenate(taken) == demonstrations.actions))
+
+
+def check_cloneable(config: AgentConfig) -> None:
+    """A ``ValueError`` unless ``config`` trains a MaskablePPO agent in a waypoint env: the scripted policies
+    choose target slots, and the fit reads the demonstrated masks."""
+    import gymnasium as gym
+
+    options = {**gym.spec(config.env_id).kwargs, **config.env_kwargs}
+    if options.get("action_mode", "waypoint") != "waypoint":
+        raise ValueError(f"{config.env_id} with action_mode {options['action_mode']!r}: the scripted policies "
+                         "choose target slots, so demonstrations need a waypoint env")
+    if config.algorithm != "MaskablePPO":
+        raise ValueError(f"algorithm {config.algorithm}: behaviour cloning fits a MaskablePPO policy (it reads "
+                         "the demonstrated action masks)")
 
 
 def cloned_model(config: AgentConfig, demonstrations: Demonstrations, **fit):
@@ -170,6 +183,7 @@ def cloned_model(config: AgentConfig, demonstrations: Demonstrations, **fit):
     model and the losses per epoch."""
     from .train import make_vec_env, model_of
 
+    check_cloneable(config)
     env = make_vec_env(config, 1, config.seed, "dummy")
     try:
         demonstrations.check_fits(env.observation_space)
@@ -185,12 +199,10 @@ def cloned_model(config: AgentConfig, demonstrations: Demonstrations, **fit):
 def clone_run(config: AgentConfig, demonstrations: Demonstrations, run_dir, **fit):
     """Write a run folder that ``emmi-gym train --init-from`` continues (``model.zip``, ``config.yaml``);
     the model's path, the losses per epoch and the model."""
-    import yaml
+    from .train import write_run_config
 
     run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
     model, losses = cloned_model(config, demonstrations, **fit)
+    write_run_config(config, run_dir)
     model.save(run_dir / "model.zip")
-    with open(run_dir / "config.yaml", "w") as f:
-        yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
     return run_dir / "model.zip", losses, model

@@ -295,6 +295,13 @@ def load_run_config(model_path) -> AgentConfig:
                             f"'emmi-gym train'?")
 
 
+def write_run_config(config: AgentConfig, run_dir: Path) -> None:
+    """Write ``config`` (resolved) as the run folder's ``config.yaml``, which :func:`load_run_config` reads."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    with open(run_dir / "config.yaml", "w") as f:
+        yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
+
+
 def sb3_hyperparameters(config: AgentConfig, env) -> dict:
     """The keywords of ``config``'s SB3 algorithm for a model on ``env``: its hyperparameters, the policy's
     keywords as SB3 takes them, and the semi-Markov rollout buffer where ``discount_unit`` is set."""
@@ -332,9 +339,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         raise FileExistsError(f"{run_dir} already holds a trained model: use --resume or another --out")
     if init_from is not None and start is None:
         init_from = check_model_file(init_from, config.algorithm)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    with open(run_dir / "config.yaml", "w") as f:
-        yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
+    write_run_config(config, run_dir)
 
     env = make_vec_env(config, config.n_envs, config.seed, config.vec_env, ray_address=ray_address)
     eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True)
