@@ -325,11 +325,14 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
             raise ValueError(f"--{name} must be at least 1, got {getattr(args, name)}")
     started = time.perf_counter()
     results = run_benchmark(config, args.rewards, range(args.seeds), args.timesteps, args.episodes, args.baselines,
-                            args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet)
+                            args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet,
+                            init_from=args.init_from)
     elapsed = time.perf_counter() - started
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
-              f"{args.timesteps} training steps per agent, {args.seeds} seed(s) per reward, {args.episodes} held-out "
+              f"{args.timesteps} training steps per agent"
+              f"{f' (from the weights of {args.init_from})' if args.init_from else ''}, "
+              f"{args.seeds} seed(s) per reward, {args.episodes} held-out "
               f"evaluation episodes each; {elapsed / 60:.1f} min wall time "
               f"({'Ray' if args.ray else 'local processes'}"
               f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}). "
@@ -430,6 +433,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="training steps per agent (default: the configuration's total_timesteps)")
     bench.add_argument("--episodes", type=int, default=10, help="held-out evaluation episodes per agent")
     bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
+    bench.add_argument("--init-from", default=None, metavar="MODEL",
+                       help="every agent starts from this model's weights (as 'train --init-from'), e.g. a "
+                            "clone of a scripted policy from 'emmi-gym clone'")
     bench.add_argument("--workers", type=int, default=None, help="local worker processes (default one per core)")
     bench.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
                        help="run on Ray: a cluster address, or none for a local instance")

@@ -11,6 +11,7 @@ from emmi_gym import certainty
 from emmi_gym.geometry.grid import GridGeometry
 from emmi_gym.scoring.scores import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.slam import RBPF, CellCodes, ParticleMaps, RBPFConfig
+from emmi_gym.slam.occupancy import beam_gaps, open_space_beams
 from emmi_gym.slam.resampling import survivors_in_place, systematic_resample
 from emmi_gym.slam.revisits import RevisitGrid, revisit_exponent
 from emmi_gym.world import LaserConfig, OdometryNoise, Simulator, drive_route, load_world, rasterise
@@ -207,6 +208,42 @@ def _mi_of(poses, scans, angles, geometry, config=RBPFConfig()):
     for pose, ranges in zip(poses, scans):
         maps.insert(pose[None], ranges, angles, 8.0, config.max_range_free)
     return certainty.mean_information(maps.probabilities(0))
+
+
+def test_open_space_beams_are_runs_without_echo_and_a_closed_scan_joins_its_ends():
+    no_echo = np.array([True, False, True, True, False, True])
+    open_arc = beam_gaps(np.linspace(-1.0, 1.0, 6))
+    np.testing.assert_array_equal(open_space_beams(no_echo, open_arc), [False, False, True, True, False, False])
+    circle = beam_gaps(np.arange(6) * np.pi / 3)
+    np.testing.assert_array_equal(open_space_beams(no_echo, circle), [True, False, True, True, False, True])
+
+
+def _probabilities_after(ranges, free_range):
+    """One scan from (0, 0) heading +x, 91 beams over 90 degrees, with a 8 m sensor, into an empty grid."""
+    angles = np.linspace(-np.pi / 4, np.pi / 4, ranges.size)
+    geometry = GridGeometry.covering(-1.0, -9.0, 9.0, 9.0, 0.1)
+    maps = ParticleMaps(geometry, 1, CellCodes.from_config(RBPFConfig()))
+    maps.insert(np.zeros((1, 3)), ranges, angles, 8.0, free_range)
+    return geometry, maps.probabilities(0)
+
+
+@pytest.mark.parametrize("free_range", [0.0, 8.0])
+def test_only_runs_of_beams_without_echo_free_cells_a_dropped_echo_frees_nothing(free_range):
+    """A wall 3 m ahead with one echo dropped: nothing beyond the wall is freed, whatever ``free_range``;
+    an opening where 11 beams in a row read the sensor's range is freed up to ``free_range``."""
+    ranges = np.full(91, 3.0)
+    ranges[20] = 8.0  # a dropped echo
+    ranges[60:71] = 8.0  # an opening: the beams from 15 to 25 degrees left
+    geometry, p = _probabilities_after(ranges, free_range)
+
+    def p_at(distance, bearing):
+        return p[geometry.cell_of(np.array([distance * np.cos(bearing)]), np.array([distance * np.sin(bearing)]))][0]
+
+    dropped, opening = np.deg2rad(-25.0), np.deg2rad(20.0)
+    assert p_at(1.5, dropped) < 0.5  # in front of the wall: freed by the echoes either side
+    assert p_at(5.0, dropped) == 0.5  # behind the wall: never freed
+    assert (p_at(5.0, opening) < 0.5) == (free_range > 0)
+    assert p_at(7.5, opening) == (0.5 if free_range == 0 else p_at(5.0, opening))
 
 
 def test_fig3_aligned_fusion_raises_mi_misaligned_lowers_it():

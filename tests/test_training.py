@@ -369,6 +369,27 @@ def test_benchmark_command_trains_for_the_configurations_budget_by_default(tmp_p
         "total_timesteps"] == 16
 
 
+def test_benchmark_agents_start_from_the_init_from_model(tmp_path, capsys):
+    path = tmp_path / "agent.yaml"
+    path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                               timesteps=16)))
+    assert main(["train", str(path), "--out", str(tmp_path / "start"), "--quiet"]) == 0
+    start = tmp_path / "start" / "model.zip"
+    argv = ["benchmark", "--config", str(path), "--init-from", str(start), "--rewards", "coverage", "--seeds", "1",
+            "--episodes", "1", "--baselines", "--workers", "1", "--out", str(tmp_path / "bench"), "--quiet"]
+    assert main(argv) == 0
+    record = yaml.safe_load((tmp_path / "bench" / "runs" / "coverage_seed0" / "training.yaml").read_text())
+    assert record["init_from"] == str(start)
+    assert f"(from the weights of {start})" in (tmp_path / "bench" / "benchmark_summary.md").read_text()
+    assert main(argv) == 0  # run again into the same folder: the agent started from that model is reused
+    assert "1 agent(s) trained by an earlier run" in (tmp_path / "bench" / "benchmark_summary.md").read_text()
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exit_:  # refused before any agent trains
+        main([*argv[:3], "--init-from", str(tmp_path / "none.zip"), *argv[5:-2], str(tmp_path / "other"), "--quiet"])
+    assert exit_.value.code == 2 and "none.zip" in capsys.readouterr().err
+    assert not (tmp_path / "other" / "runs").exists()
+
+
 def test_train_and_evaluate_commands(tmp_path, capsys):
     path = tmp_path / "agent.yaml"
     path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1})))

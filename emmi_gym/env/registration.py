@@ -14,9 +14,11 @@ ENV_IDS = {
                             laser={"preset": "sick_lms200", "max_range": 8.0}, odometry_noise="poor"),
     "Explore-v0": dict(world=None, start_at="start", action_mode="waypoint"),
     "ExploreVelocity-v0": dict(world=None, start_at="start", action_mode="velocity"),
-    # the hard configuration: real floor plans, a SICK LMS200 at its 8 m range, poor odometry
+    # the hard configuration: real floor plans, a SICK LMS200 at its 8 m range, poor odometry; rooms wider than
+    # the range leave runs of beams without echo, which free the cells up to it (GMapping's maxUrange < maxRange)
     "ExplorePlans-v0": dict(world="dungeon_maps/train", start_at="start", action_mode="waypoint",
                             laser={"preset": "sick_lms200", "max_range": 8.0}, odometry_noise="poor",
+                            slam={"max_range_free": 8.0},
                             max_decisions=120, max_sim_steps=30000),
 }
 

@@ -38,10 +38,11 @@ class RBPFConfig:
                                   help="cells stay within +- this log-odds")
     logodds_step: float = option(0.05, Real(0.001, 1.0),  # one int8 code
                                  help="log-odds of one int8 code of the stored maps")
-    # A max-range reading frees this far (0: ignore such beams). Off by default: a
-    # dropped echo also reads max range, and freeing along it would erase walls.
+    # A max-range reading beside another frees this far (0: ignore such beams); a lone one is a
+    # dropped echo and frees nothing (occupancy.open_space_beams). Off by default.
     max_range_free: float = option(0.0, Real(0.0, 100.0, unit="m"),
-                                   help="a max-range reading frees this far along its beam; 0: such beams are ignored")
+                                   help="a max-range reading beside another frees this far along its beam (a lone one is a "
+                                        "dropped echo); 0: such beams are ignored")
     # Echoes beyond insertion_range only free the cells up to it (GMapping's maxUrange), and
     # beams beyond matching_range are left out of the matching and the weights; None: the
     # sensor's range. Long beams fix the heading: limit the insertion, not the matching.

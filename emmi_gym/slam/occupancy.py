@@ -30,6 +30,19 @@ def beam_gaps(angles: np.ndarray) -> np.ndarray:
     return gaps
 
 
+def open_space_beams(no_echo: np.ndarray, gaps: np.ndarray) -> np.ndarray:
+    """The beams without echo that have a neighbour without echo too (neighbours as in :func:`beam_gaps`).
+
+    Open space beyond the sensor's range leaves runs of beams without echo; a dropped echo is
+    a lone one among echoes (a second one beside it has the drop probability squared). Only the
+    former may free cells: freeing along a dropped echo would cut through the wall it missed.
+    """
+    joined = gaps > 0.0
+    after = np.roll(no_echo, -1) & joined  # beam b + 1, where b and b + 1 are neighbours
+    before = np.roll(no_echo & joined, 1)  # beam b - 1, where b - 1 and b are
+    return no_echo & (after | before)
+
+
 #: The most memory the particles' maps may take (a pose far off in a log, or a huge world, would
 #: otherwise ask for terabytes).
 MAX_MAP_BYTES = 4 * 2**30
@@ -146,14 +159,19 @@ class ParticleMaps:
         """Insert one scan, as its polygon, into every particle's grid at that particle's pose.
 
         ``angles`` must increase; a scan that closes the circle has its last beam joined
-        to its first. Readings of ``max_range`` (no echo) free ``free_range`` metres; with
-        ``insertion_range`` below ``max_range``, echoes beyond it only free the cells up to
-        it (GMapping's maxUrange). See ``_kernels.scan_rays`` and ``_kernels.insert_scans``.
+        to its first. Readings of ``max_range`` (no echo) free ``free_range`` metres where a
+        neighbouring beam has no echo either (:func:`open_space_beams`; a lone one is a dropped
+        echo and frees nothing); with ``insertion_range`` below ``max_range``, echoes beyond it
+        only free the cells up to it (GMapping's maxUrange). See ``_kernels.scan_rays`` and
+        ``_kernels.insert_scans``.
         """
         g, c = self.geometry, self.cell_codes
         hit_range = max_range if insertion_range is None else min(max_range, insertion_range)
-        free_lengths = np.where(ranges >= max_range, min(free_range, hit_range), hit_range)
-        rays = _kernels.scan_rays(ranges, angles, self._beam_gaps(angles), hit_range, free_lengths, g.resolution)
+        gaps = self._beam_gaps(angles)
+        no_echo = ranges >= max_range
+        free_lengths = np.where(no_echo, np.where(open_space_beams(no_echo, gaps), min(free_range, hit_range), 0.0),
+                                hit_range)
+        rays = _kernels.scan_rays(ranges, angles, gaps, hit_range, free_lengths, g.resolution)
         chunks = chunk_bounds(self.n_particles)
         while len(self._scratch) < len(chunks):
             self._scratch.append(_InsertionScratch(g.shape))

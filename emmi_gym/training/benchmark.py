@@ -26,6 +26,7 @@ from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
+from .model_files import check_model_file
 from .train import make_env, set_torch_threads, train
 
 #: Ground-truth columns of the benchmark table, with their labels.
@@ -44,8 +45,9 @@ TABLE_COLUMNS = {
 
 @dataclass(frozen=True)
 class Job:
-    """One benchmark run: train ``config`` with reward ``variant`` (kind "agent"), or run the
-    scripted policy ``variant`` (kind "baseline"); then evaluate on the held-out episodes."""
+    """One benchmark run: train ``config`` with reward ``variant`` (kind "agent"; from the weights of
+    the model ``init_from``, if given), or run the scripted policy ``variant`` (kind "baseline"); then
+    evaluate on the held-out episodes."""
 
     kind: str
     variant: str
@@ -54,6 +56,7 @@ class Job:
     run_dir: Path
     episodes: int
     episode_seed: int
+    init_from: Path | None = None
 
 
 def run_job(job: Job) -> dict:
@@ -65,7 +68,7 @@ def run_job(job: Job) -> dict:
         model_path = job.run_dir / "model.zip"
         trained = not _already_trained(job)
         if trained:
-            model_path = train(job.config, job.run_dir, progress=False).model_path
+            model_path = train(job.config, job.run_dir, progress=False, init_from=job.init_from).model_path
         rows = evaluate_model(model_path, job.episodes, job.episode_seed)
         evaluations = job.run_dir / "eval_ground_truth.csv"
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
@@ -85,18 +88,26 @@ def run_job(job: Job) -> dict:
 
 
 def _already_trained(job: Job) -> bool:
-    """Whether the job's run folder holds a finished model of the same configuration (a benchmark run
-    again into the same folder, e.g. after an interruption, evaluates it instead of training again)."""
-    from .train import load_run_config
+    """Whether the job's run folder holds a finished model of the same configuration, started from the
+    same model (a benchmark run again into the same folder, e.g. after an interruption, evaluates it
+    instead of training again)."""
+    import yaml
+
+    from .train import TRAINING_RECORD, load_run_config
 
     if not (job.run_dir / "model.zip").exists():
         return False
-    return load_run_config(job.run_dir / "model.zip").as_yaml_dict() == job.config.as_yaml_dict()
+    record = yaml.safe_load((job.run_dir / TRAINING_RECORD).read_text()) or {}
+    started_from = record.get("init_from")
+    return (load_run_config(job.run_dir / "model.zip").as_yaml_dict() == job.config.as_yaml_dict()
+            and started_from == (None if job.init_from is None else str(job.init_from)))
 
 
-def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir) -> list[Job]:
-    """The agents (one per reward and seed, trained with single-env ``dummy`` vectorisation: the jobs
-    run in parallel already) and one job per scripted baseline."""
+def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir,
+              init_from=None) -> list[Job]:
+    """The agents (one per reward and seed, trained with ``dummy`` vectorisation: the jobs run in
+    parallel already; each from the weights of the model ``init_from``, if given, as ``train
+    --init-from``) and one job per scripted baseline."""
     out = Path(out_dir)
     if baselines and _action_mode(config) != "waypoint":
         raise ValueError(f"the scripted baselines {list(baselines)} choose waypoint targets, but {config.env_id} "
@@ -107,7 +118,7 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
             agent = replace(config, env_kwargs=dict(config.env_kwargs, reward=reward), seed=int(seed),
                             total_timesteps=int(timesteps), vec_env="dummy")
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
-                            EVALUATION_SEED))
+                            EVALUATION_SEED, init_from))
     for name in baselines:
         jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, EVALUATION_SEED))
     return jobs
@@ -139,9 +150,13 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
 
 
 def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
-                  workers: int | None = None, ray_address: str | None = None, progress: bool = True) -> list[dict]:
-    """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed."""
-    jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir)
+                  workers: int | None = None, ray_address: str | None = None, progress: bool = True,
+                  init_from=None) -> list[dict]:
+    """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed.
+    ``init_from`` (a model every agent starts from) is checked before any job starts."""
+    if init_from is not None:
+        init_from = check_model_file(init_from, config.algorithm)
+    jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from)
     if ray_address is not None:
         results = _ray(jobs, ray_address, progress)
     else:
