@@ -2,8 +2,11 @@
 
     python scripts/plot_learning_curves.py runs/plans_emmi_seed0=scratch runs/plans_emmi_bc_seed0=clone+RL \\
         --baselines-csv results/test50.csv --out docs/plans_learning_curves.png
+    python scripts/plot_learning_curves.py runs/reward_benchmark/runs/emmi_seed*=emmi ... --out curves.png
 
 Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``) gives one line per measure;
+runs given the same LABEL (the seeds of one configuration) are drawn as their mean over the
+evaluations they all reached, the band spanning them;
 ``--baselines-csv`` (``episodes.csv`` of ``emmi-gym evaluate --out``) draws each scripted policy's mean
 there as a level line, for scale (its episodes are not the periodic evaluation's).
 """
@@ -34,19 +37,26 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     fig, axes = plt.subplots(1, len(MEASURES), figsize=(4 * len(MEASURES), 3.4))
+    groups: dict[str, list[list[dict]]] = {}
     for run in args.runs:
         folder, _, label = run.partition("=")
         with open(Path(folder) / "eval_ground_truth.csv", newline="") as f:
-            rows = list(csv.DictReader(f))
-        steps = [int(float(r["timesteps"])) for r in rows]
+            groups.setdefault(label or folder, []).append(list(csv.DictReader(f)))
+    for k, (label, runs) in enumerate(groups.items()):
+        length = min(len(rows) for rows in runs)
+        steps = [int(float(r["timesteps"])) for r in runs[0][:length]]
         for ax, measure in zip(axes, MEASURES):
-            ax.plot(steps, [float(r[measure]) for r in rows], marker="o", ms=3, label=label or folder)
+            values = np.array([[float(r[measure]) for r in rows[:length]] for rows in runs])
+            name = label if len(runs) == 1 else f"{label} ({len(runs)} runs)"
+            ax.plot(steps, values.mean(axis=0), marker="o", ms=3, color=f"C{k}", label=name)
+            if len(runs) > 1:
+                ax.fill_between(steps, values.min(axis=0), values.max(axis=0), color=f"C{k}", alpha=0.15)
     if args.baselines_csv is not None:
         episodes = read_csv(args.baselines_csv)
         for k, policy in enumerate(p for p in BASELINES if any(r["policy"] == p for r in episodes)):
             for ax, measure in zip(axes, MEASURES):
                 mean = np.nanmean([r[measure] for r in episodes if r["policy"] == policy])
-                ax.axhline(mean, color=f"C{len(args.runs) + k}", ls="--", lw=1, label=policy)
+                ax.axhline(mean, color=f"C{len(groups) + k}", ls="--", lw=1, label=policy)
     for ax, measure in zip(axes, MEASURES):
         ax.set_xlabel("decisions trained")
         ax.set_title(f"held-out: {MEASURES[measure]}", fontsize=9)
