@@ -2,13 +2,15 @@
 
     python scripts/plot_learning_curves.py runs/plans_emmi_seed0=scratch runs/plans_emmi_bc_seed0=clone+RL \\
         --baselines-csv results/test50.csv --out docs/plans_learning_curves.png
-    python scripts/plot_learning_curves.py runs/reward_benchmark/runs/emmi_seed*=emmi ... --out curves.png
+    python scripts/plot_learning_curves.py runs/bench/runs/emmi_seed0=emmi runs/bench/runs/emmi_seed1=emmi \\
+        runs/bench/runs/pose_entropy_seed0=pose_entropy runs/bench/runs/pose_entropy_seed1=pose_entropy --out c.png
 
 Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``) gives one line per measure;
 runs given the same LABEL (the seeds of one configuration) are drawn as their mean over the
 evaluations they all reached, the band spanning them;
-``--baselines-csv`` (``episodes.csv`` of ``emmi-gym evaluate --out``) draws each scripted policy's mean
-there as a level line, for scale (its episodes are not the periodic evaluation's).
+``--baselines-csv`` (``episodes.csv`` of ``emmi-gym evaluate --out``, or ``benchmark_episodes.csv`` of
+``emmi-gym benchmark``) draws each scripted policy's mean there as a level line, for scale (its
+episodes are not the periodic evaluation's).
 """
 
 from __future__ import annotations
@@ -52,7 +54,7 @@ def main() -> None:
             if len(runs) > 1:
                 ax.fill_between(steps, values.min(axis=0), values.max(axis=0), color=f"C{k}", alpha=0.15)
     if args.baselines_csv is not None:
-        episodes = read_csv(args.baselines_csv)
+        episodes = [dict(r, policy=r.get("policy", r.get("variant"))) for r in read_csv(args.baselines_csv)]
         for k, policy in enumerate(p for p in BASELINES if any(r["policy"] == p for r in episodes)):
             for ax, measure in zip(axes, MEASURES):
                 mean = np.nanmean([r[measure] for r in episodes if r["policy"] == policy])

@@ -69,8 +69,8 @@ def main() -> None:
     for name, command in VELOCITY_POLICIES.items():
         results[f"{name} ({args.steps} steps)"] = [velocity_episode(command, s, args.steps) for s in range(args.seeds)]
     for name in ("frontier", "active_loop_closing"):
-        results[f"{name} (at most {args.decisions} decisions)"] = [waypoint_episode(name, s, args.decisions)
-                                                           for s in range(args.seeds)]
+        results[f"{name} (at most {args.decisions} decisions)"] = [
+            waypoint_episode(name, s, args.decisions) for s in range(args.seeds)]
     print(f"mean undiscounted return over {args.seeds} seeds (plans of dungeon_maps/train), time and collision "
           "costs included; in brackets: per 100 simulator steps")
     print("| policy | " + " | ".join(REWARDS) + " |")

@@ -97,7 +97,8 @@ def _already_trained(job: Job) -> bool:
 
     if not (job.run_dir / "model.zip").exists():
         return False
-    record = yaml.safe_load((job.run_dir / TRAINING_RECORD).read_text()) or {}
+    record_path = job.run_dir / TRAINING_RECORD
+    record = (yaml.safe_load(record_path.read_text()) or {}) if record_path.is_file() else {}
     started_from = record.get("init_from")
     return (load_run_config(job.run_dir / "model.zip").as_yaml_dict() == job.config.as_yaml_dict()
             and started_from == (None if job.init_from is None else str(job.init_from)))
