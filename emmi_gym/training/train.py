@@ -11,6 +11,7 @@ algorithms), ``eval/`` (SB3's ``evaluations.npz`` and the best model),
 from __future__ import annotations
 
 import copy
+import gc
 import os
 import platform
 import re
@@ -135,39 +136,53 @@ def interrupts_deferred():
 
 
 @contextmanager
-def interrupts_remembered():
+def interrupts_remembered(received: list):
     """Within the block a Ctrl-C (SIGINT) raises KeyboardInterrupt as usual and is also remembered:
-    yields a list that holds True once one arrived.
+    ``received`` holds True once one arrived.
 
     Python code called back from C can drop the exception: numba loads and compiles its
     kernels through llvmlite, whose ctypes callbacks discard what they raise (and print it
     as an "Exception ignored" traceback), so a Ctrl-C that arrived there was lost and
-    training went on. :class:`StopOnInterrupt` raises it again at the next step, and a
-    KeyboardInterrupt discarded so is not printed (``sys.unraisablehook``); nor, once a Ctrl-C
-    arrived, is the failing finaliser of an llvmlite object that the interrupt left half-built
-    (``ObjectRef.__del__`` on an object whose ``__init__`` never finished).
+    training went on. :class:`StopOnInterrupt` raises it again at the next step;
+    :func:`unraisable_interrupts_quiet` keeps what C code discarded from being printed.
     """
-    received: list[bool] = []
     if not _handles_ctrl_c():
-        yield received
+        yield
         return
 
     def remember(signum, frame):
         received.append(True)
         raise KeyboardInterrupt
 
-    def quiet_when_remembered(unraisable):
+    previous = signal.signal(signal.SIGINT, remember)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
+def unraisable_interrupts_quiet(received: list):
+    """Within the block, once ``received`` holds a Ctrl-C (:func:`interrupts_remembered`), neither a
+    KeyboardInterrupt that C code discarded nor the failing finaliser of an llvmlite object the
+    interrupt left half-built (``ObjectRef.__del__`` on an object whose ``__init__`` never
+    finished) is printed (``sys.unraisablehook``); anything else is. Such an object is freed when
+    the interrupt's traceback is, after the code that handles the interrupt, or by the garbage
+    collector: the block must cover that handling, and it collects before it ends."""
+    previous_hook = sys.unraisablehook
+
+    def quiet_when_interrupted(unraisable):
         echo = isinstance(unraisable.exc_value, KeyboardInterrupt) or \
             (getattr(unraisable.object, "__module__", None) or "").startswith("llvmlite.")
         if not (received and echo):
             previous_hook(unraisable)
 
-    previous, previous_hook = signal.signal(signal.SIGINT, remember), sys.unraisablehook
-    sys.unraisablehook = quiet_when_remembered
+    sys.unraisablehook = quiet_when_interrupted
     try:
-        yield received
+        yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if received:
+            gc.collect()
         sys.unraisablehook = previous_hook
 
 
@@ -369,29 +384,31 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     remaining = max(config.total_timesteps - model.num_timesteps, 0)
     started = time.perf_counter()
     interrupted = False
-    try:
-        with warnings.catch_warnings(), interrupts_remembered() as interrupts:
-            # the held-out evaluation runs in this process (a DummyVecEnv) while training may use
-            # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
-            warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
-            model.learn(remaining, callback=CallbackList([StopOnInterrupt(interrupts), *callbacks]),
-                        progress_bar=progress, reset_num_timesteps=start is None and init_from is None,
-                        tb_log_name="run")
-        with interrupts_deferred():
-            model_path = save_atomically(model.save, run_dir / "model.zip")
-            record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started, init_from)
-    except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
-        interrupted = True
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short
+    interrupts: list[bool] = []
+    with unraisable_interrupts_quiet(interrupts):
         try:
-            checkpoints.mkdir(parents=True, exist_ok=True)
-            model_path = save_atomically(model.save, checkpoints / f"model_{model.num_timesteps}_steps.zip")
-            if config.algorithm in OFF_POLICY:
-                save_atomically(model.save_replay_buffer,
-                                checkpoints / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
+            with warnings.catch_warnings(), interrupts_remembered(interrupts):
+                # the held-out evaluation runs in this process (a DummyVecEnv) while training may use
+                # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
+                warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
+                model.learn(remaining, callback=CallbackList([StopOnInterrupt(interrupts), *callbacks]),
+                            progress_bar=progress, reset_num_timesteps=start is None and init_from is None,
+                            tb_log_name="run")
+            with interrupts_deferred():
+                model_path = save_atomically(model.save, run_dir / "model.zip")
+                record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started, init_from)
+        except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
+            interrupted = True
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short
+            try:
+                checkpoints.mkdir(parents=True, exist_ok=True)
+                model_path = save_atomically(model.save, checkpoints / f"model_{model.num_timesteps}_steps.zip")
+                if config.algorithm in OFF_POLICY:
+                    save_atomically(model.save_replay_buffer,
+                                    checkpoints / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
+            finally:
+                signal.signal(signal.SIGINT, previous)
         finally:
-            signal.signal(signal.SIGINT, previous)
-    finally:
-        close_vec_env(env)
-        close_vec_env(eval_env)
+            close_vec_env(env)
+            close_vec_env(eval_env)
     return TrainResult(run_dir, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
