@@ -169,8 +169,12 @@ class ParticleMaps:
         hit_range = max_range if insertion_range is None else min(max_range, insertion_range)
         gaps = self._beam_gaps(angles)
         no_echo = ranges >= max_range
-        free_lengths = np.where(no_echo, np.where(open_space_beams(no_echo, gaps), min(free_range, hit_range), 0.0),
-                                hit_range)
+        free = min(free_range, hit_range)
+        if free > 0.0:  # off by default: the real logs' updates skip it
+            no_echo_lengths = np.where(open_space_beams(no_echo, gaps), free, 0.0)
+        else:
+            no_echo_lengths = 0.0
+        free_lengths = np.where(no_echo, no_echo_lengths, hit_range)
         rays = _kernels.scan_rays(ranges, angles, gaps, hit_range, free_lengths, g.resolution)
         chunks = chunk_bounds(self.n_particles)
         while len(self._scratch) < len(chunks):
