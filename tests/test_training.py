@@ -96,9 +96,14 @@ def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     stopped = train(config, tmp_path, progress=False)
     assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path)
     assert not (tmp_path / "model.zip").exists()
+    record = yaml.safe_load((tmp_path / "training.yaml").read_text())
+    assert record["timesteps"] == stopped.timesteps and 0 < record["wall_seconds"] <= stopped.wall_seconds + 0.05
     run_on()
     finished = train(config, tmp_path, resume=True, progress=False)
     assert finished.timesteps >= 96 and (tmp_path / "model.zip").exists()
+    record = yaml.safe_load((tmp_path / "training.yaml").read_text())  # both parts' wall time
+    assert record["timesteps"] == finished.timesteps
+    assert record["wall_seconds"] == pytest.approx(stopped.wall_seconds + finished.wall_seconds, abs=0.5)
 
 
 @pytest.mark.parametrize("whole_group", [False, True], ids=["kill -INT main process", "Ctrl-C (process group)"])

@@ -406,6 +406,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
                 if config.algorithm in OFF_POLICY:
                     save_atomically(model.save_replay_buffer,
                                     checkpoints / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
+                record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started, init_from)
             finally:
                 signal.signal(signal.SIGINT, previous)
         finally:
