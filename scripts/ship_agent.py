@@ -90,7 +90,7 @@ def main() -> None:
 
 {config.algorithm} ({config.policy}) on `{config.env_id}` with the `{config.env_kwargs.get('reward', 'emmi')}` reward.
 
-- Budget: {config.total_timesteps} decisions, seed {config.seed}, {config.n_envs} envs.
+- Budget: {pretrained.load(args.name).num_timesteps} decisions, seed {config.seed}, {config.n_envs} envs.
 - Training time: {seconds / 60:.1f} min of wall time on {trained_on}.
 - Load it: `model = emmi_gym.pretrained.load("{args.name}")`; play it: `{command}`.
 {f"{chr(10)}{args.note}{chr(10)}" if args.note else ""}

@@ -72,7 +72,7 @@ def test_each_shipped_agent_loads_in_one_line_and_picks_a_valid_target(name):
     model = pretrained.load(name)
     config = pretrained.config(name)
     card = (pretrained.FOLDER / name / "MODEL_CARD.md").read_text()
-    assert f"{config.total_timesteps} decisions, seed {config.seed}" in card and "| ATE (m) |" in card
+    assert f"{model.num_timesteps} decisions, seed {config.seed}" in card and "| ATE (m) |" in card
     env = gym.make(config.env_id, **config.eval_env_kwargs)
     observation, _ = env.reset(seed=200_000)
     masks = env.unwrapped.action_masks()
