@@ -90,6 +90,14 @@ def interrupt_training_at(monkeypatch, timesteps: int):
     return lambda: monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", original)
 
 
+def test_eval_freq_zero_trains_with_checkpoints_and_no_periodic_evaluation(tmp_path):
+    config = dict(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}),
+                  eval={"freq": 0, "episodes": 1, "seed": 500})
+    result = train(parse_agent_config(config), tmp_path, progress=False)
+    assert result.model_path.exists() and (tmp_path / "checkpoints" / "model_48_steps.zip").exists()
+    assert not (tmp_path / "eval_ground_truth.csv").exists() and not (tmp_path / "eval").exists()
+
+
 def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     run_on = interrupt_training_at(monkeypatch, 40)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
@@ -317,7 +325,7 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
     ({"n_envs": 0}, "n_envs", "an integer in [1, 64]"),
     ({"n_envs": 100000}, "n_envs", "an integer in [1, 64]"),
     ({"vec_env": "slurm"}, "vec_env", "one of ['subproc', 'dummy', 'ray']"),
-    ({"eval": {"freq": -1}}, "eval.freq", "an integer in [1, "),
+    ({"eval": {"freq": -1}}, "eval.freq", "an integer in [0, "),
     ({"eval": {"every": 3}}, "eval.every", "one of the known options ['freq', 'episodes', 'seed', 'env_kwargs']"),
     ({"eval": {"env_kwargs": {"rewad": "emmi"}}}, "eval.env_kwargs.rewad", "one of the known options"),
     ({"eval": {"env_kwargs": {"obs_size": 32}}}, "eval.env_kwargs",

@@ -72,9 +72,11 @@ class EvalSchedule:
     episodes seeded from ``seed`` on (the same episodes at every evaluation). ``env_kwargs``
     override the training env's ``gym.make`` keywords in every held-out evaluation (the periodic
     one, ``evaluate`` and the benchmark's), e.g. ``world: dungeon_maps/test`` to evaluate on the
-    test split of floor plans (rl-baselines3-zoo's ``eval_env_kwargs``)."""
+    test split of floor plans (rl-baselines3-zoo's ``eval_env_kwargs``). ``freq: 0``: no periodic
+    evaluation (it plays one episode at a time in the learner's process, which on a many-core
+    machine idles the env workers; score the checkpoints afterwards with ``evaluate``)."""
 
-    freq: int = option(2000, Integer(1, 10**10))
+    freq: int = option(2000, Integer(0, 10**10))
     episodes: int = option(4, Integer(1, 10**5))
     seed: int = option(100_000, Integer(0, 2**32 - 1))
     env_kwargs: dict = option({}, Mapping())

@@ -357,7 +357,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     write_run_config(config, run_dir)
 
     env = make_vec_env(config, config.n_envs, config.seed, config.vec_env, ray_address=ray_address)
-    eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True)
+    eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True) if config.eval.freq else None
     if start is not None:
         model = load_model_file(start, config.algorithm, env=env, tensorboard_log=str(run_dir / "tb"))
         buffer = start.with_name(start.name.replace("model_", "model_replay_buffer_").replace(".zip", ".pkl"))
@@ -372,13 +372,14 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     else:
         model = model_of(config, env, tensorboard_log=str(run_dir / "tb"), verbose=verbose)
     per_env = max(1, config.n_envs)
-    evaluation = eval_callback_class(config.algorithm)(
-        eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
-        log_path=str(run_dir / "eval"), best_model_save_path=str(run_dir / "eval"), deterministic=True,
-        verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv")
     checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoints), name_prefix="model",
                                        save_replay_buffer=config.algorithm in OFF_POLICY)
-    callbacks = [checkpointing, evaluation]
+    callbacks = [checkpointing]
+    if eval_env is not None:
+        callbacks.append(eval_callback_class(config.algorithm)(
+            eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
+            log_path=str(run_dir / "eval"), best_model_save_path=str(run_dir / "eval"), deterministic=True,
+            verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv"))
     if config.discount_unit is not None:
         callbacks.append(SemiMarkovDiscounts(config.discount_unit))
     remaining = max(config.total_timesteps - model.num_timesteps, 0)
@@ -411,5 +412,6 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
                 signal.signal(signal.SIGINT, previous)
         finally:
             close_vec_env(env)
-            close_vec_env(eval_env)
+            if eval_env is not None:
+                close_vec_env(eval_env)
     return TrainResult(run_dir, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
