@@ -5,7 +5,8 @@
     python scripts/plot_learning_curves.py runs/bench/runs/emmi_seed0=emmi runs/bench/runs/emmi_seed1=emmi \\
         runs/bench/runs/pose_entropy_seed0=pose_entropy runs/bench/runs/pose_entropy_seed1=pose_entropy --out c.png
 
-Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``) gives one line per measure;
+Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``; ``--scores
+checkpoint_scores.csv``: the file of ``scripts/score_checkpoints.py``) gives one line per measure;
 runs given the same LABEL (the seeds of one configuration) are drawn as their mean over the
 evaluations they all reached, the band spanning them;
 ``--baselines-csv`` (``episodes.csv`` of ``emmi-gym evaluate --out``, or ``benchmark_episodes.csv`` of
@@ -35,6 +36,8 @@ BASELINES = ("frontier", "active_loop_closing", "random")
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
+    parser.add_argument("--scores", default="eval_ground_truth.csv",
+                        help="the file of each run folder to draw (checkpoint_scores.csv: score_checkpoints.py's)")
     parser.add_argument("--baselines-csv", type=Path, default=None)
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
@@ -42,7 +45,7 @@ def main() -> None:
     groups: dict[str, list[list[dict]]] = {}
     for run in args.runs:
         folder, _, label = run.partition("=")
-        with open(Path(folder) / "eval_ground_truth.csv", newline="") as f:
+        with open(Path(folder) / args.scores, newline="") as f:
             groups.setdefault(label or folder, []).append(list(csv.DictReader(f)))
     for k, (label, runs) in enumerate(groups.items()):
         length = min(len(rows) for rows in runs)

@@ -83,3 +83,29 @@ def test_each_shipped_agent_loads_in_one_line_and_picks_a_valid_target(name):
 
 def test_the_package_ships_the_reference_agents():
     assert {"loop_corridor_emmi", "explore_plans_emmi"} <= set(pretrained.names())
+
+
+def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path):
+    from emmi_gym.training.checkpoint_scores import score_checkpoints
+    from emmi_gym.training.evaluate import compare_model
+
+    data = {"env": {"id": "emmi_gym/Explore-v0", "kwargs": TINY_ENV}, "algorithm": "MaskablePPO",
+            "policy": "MultiInputPolicy",
+            "hyperparameters": {"policy_kwargs": {"net_arch": [16]}, "n_steps": 4, "batch_size": 4, "n_epochs": 1},
+            "n_envs": 1, "vec_env": "dummy", "total_timesteps": 8, "seed": 3,
+            "eval": {"freq": 0, "episodes": 1, "seed": 500}, "checkpoint_freq": 4}
+    run = tmp_path / "run"
+    train(parse_agent_config(data), run, progress=False)
+    (run / "checkpoints" / "model_12_steps.zip").write_bytes(b"cut short")  # a save a kill cut short
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint .*model_12_steps.zip"):
+        curve, rows = score_checkpoints(run, episodes=2, seed=7, workers=1, progress=False)
+    assert [row["timesteps"] for row in curve] == [4, 8]
+    assert sorted((r["policy"], r["seed"]) for r in rows) == [(p, s) for p in ("model_4", "model_8") for s in (7, 8)]
+    last = [r for r in rows if r["policy"] == "model_8"]
+    assert curve[1]["ate"] == pytest.approx(sum(r["ate"] for r in last) / 2)
+    alone = compare_model(run / "checkpoints" / "model_8_steps.zip", "model_8", episodes=2, seed=7, workers=1,
+                          progress=False)
+    assert [r["ate"] for r in alone] == [r["ate"] for r in last]  # the same episodes as evaluate plays
+
+    with pytest.raises(FileNotFoundError, match="no checkpoint in"):
+        score_checkpoints(tmp_path / "empty", progress=False)

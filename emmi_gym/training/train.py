@@ -209,7 +209,8 @@ def save_atomically(save, path: Path) -> Path:
     return path
 
 
-def _is_whole_zip(path: Path) -> bool:
+def is_whole_zip(path: Path) -> bool:
+    """Whether ``path`` is a zip archive whose members all read back (a save cut short by a kill is not)."""
     try:
         with zipfile.ZipFile(path) as archive:
             return archive.testzip() is None
@@ -221,15 +222,23 @@ def latest_checkpoint(run_dir: Path) -> Path | None:
     """The checkpoint of a run folder to continue from: the final ``model.zip`` if the run finished, else
     the checkpoint with the most steps that is a whole archive (one cut short by a kill is skipped,
     with a warning)."""
-    if (run_dir / "model.zip").exists() and _is_whole_zip(run_dir / "model.zip"):
+    if (run_dir / "model.zip").exists() and is_whole_zip(run_dir / "model.zip"):
         return run_dir / "model.zip"
-    found = sorted(((int(m.group(1)), p) for p in (run_dir / "checkpoints").glob("model_*_steps.zip")
-                    if (m := _CHECKPOINT.search(p.name))), reverse=True)
-    for _, path in found:
-        if _is_whole_zip(path):
-            return path
-        warnings.warn(f"skipping the damaged checkpoint {path} (not a whole zip archive)", stacklevel=2)
-    return None
+    return next((path for _, path in reversed(checkpoints(run_dir)) if is_whole_checkpoint(path)), None)
+
+
+def is_whole_checkpoint(path: Path) -> bool:
+    """Whether a checkpoint is a whole archive; a damaged one (cut short by a kill) is skipped with a warning."""
+    if is_whole_zip(path):
+        return True
+    warnings.warn(f"skipping the damaged checkpoint {path} (not a whole zip archive)", stacklevel=3)
+    return False
+
+
+def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
+    """The checkpoints of a run folder, ``(decisions, path)``, fewest decisions first."""
+    return sorted((int(m.group(1)), p) for p in (Path(run_dir) / "checkpoints").glob("model_*_steps.zip")
+                  if (m := _CHECKPOINT.search(p.name)))
 
 
 class AtomicCheckpointCallback(CheckpointCallback):

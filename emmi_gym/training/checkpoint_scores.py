@@ -1,0 +1,43 @@
+"""The learning curve of a training run from its checkpoints: every checkpoint plays the same held-out
+episodes, all of them in parallel (:func:`emmi_gym.experiments.comparison.compare_on`), and each
+checkpoint's row is the mean of the episodes' ground-truth measures.
+
+``emmi-gym train``'s periodic evaluation plays one episode at a time in the learner's process, while
+the env workers wait; a run trained with ``eval.freq: 0`` gets its curve afterwards, on every core and
+on as many episodes as wanted (``scripts/score_checkpoints.py``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..experiments.comparison import compare_on, episodes_on
+from ..experiments.episodes import nanmean
+from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings
+from .train import checkpoints, is_whole_checkpoint, load_run_config
+
+#: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
+MEASURES = ("return", "oracle_accuracy", "wall_consistency", "ate", "map_accuracy", "coverage", "reached_target",
+            "sim_steps_to_target", "revisit_share", "sim_steps", "decisions")
+
+
+def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = EVALUATION_SEED, *,
+                      workers: int | None = None, progress: bool = True) -> tuple[list[dict], list[dict]]:
+    """``(curve, rows)``: ``curve`` a row per whole checkpoint of ``run_dir`` (``timesteps``, then the
+    mean of each of :data:`MEASURES` over the episodes, of the finite values: ``sim_steps_to_target``
+    over those that reached the target), fewest decisions first; ``rows`` every episode, its policy
+    named ``model_<N>``. The episodes are :func:`~emmi_gym.experiments.comparison.episodes_on` ``(world, episodes, seed)``
+    in the run's evaluation env (by default on that env's own world); a damaged checkpoint (cut
+    short by a kill) is skipped with a warning."""
+    run_dir = Path(run_dir)
+    found = [(decisions, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
+    if not found:
+        raise FileNotFoundError(f"no checkpoint in {run_dir / 'checkpoints'}: was it written by 'emmi-gym train'?")
+    settings, own_world = comparison_settings(load_run_config(found[0][1]))
+    agents = [TrainedAgent(str(path), f"model_{decisions}") for decisions, path in found]
+    rows = compare_on(episodes_on(own_world if world is OWN_WORLD else world, episodes, seed), agents, settings,
+                      workers=workers, progress=progress, start_method="spawn")  # torch and fork do not mix
+    curve = []
+    for decisions, _ in found:
+        mine = [r for r in rows if r["policy"] == f"model_{decisions}"]
+        curve.append({"timesteps": decisions, **{k: nanmean([r[k] for r in mine]) for k in MEASURES}})
+    return curve, rows
