@@ -74,7 +74,8 @@ class EvalSchedule:
     one, ``evaluate`` and the benchmark's), e.g. ``world: dungeon_maps/test`` to evaluate on the
     test split of floor plans (rl-baselines3-zoo's ``eval_env_kwargs``). ``freq: 0``: no periodic
     evaluation (it plays one episode at a time in the learner's process, which on a many-core
-    machine idles the env workers; score the checkpoints afterwards with ``evaluate``)."""
+    machine idles the env workers; score the checkpoints afterwards with
+    :func:`emmi_gym.training.checkpoint_scores.score_checkpoints`)."""
 
     freq: int = option(2000, Integer(0, 10**10))
     episodes: int = option(4, Integer(1, 10**5))

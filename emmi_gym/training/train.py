@@ -355,10 +355,10 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     from stable_baselines3.common.callbacks import CallbackList
 
     run_dir = Path(run_dir)
-    checkpoints = run_dir / "checkpoints"
+    checkpoint_dir = run_dir / "checkpoints"
     start = latest_checkpoint(run_dir) if resume else None
     if resume and start is None:
-        raise FileNotFoundError(f"--resume: no checkpoint in {checkpoints}")
+        raise FileNotFoundError(f"--resume: no checkpoint in {checkpoint_dir}")
     if not resume and (run_dir / "model.zip").exists():
         raise FileExistsError(f"{run_dir} already holds a trained model: use --resume or another --out")
     if init_from is not None and start is None:
@@ -381,7 +381,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
     else:
         model = model_of(config, env, tensorboard_log=str(run_dir / "tb"), verbose=verbose)
     per_env = max(1, config.n_envs)
-    checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoints), name_prefix="model",
+    checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoint_dir), name_prefix="model",
                                        save_replay_buffer=config.algorithm in OFF_POLICY)
     callbacks = [checkpointing]
     if eval_env is not None:
@@ -411,11 +411,11 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
             interrupted = True
             previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short
             try:
-                checkpoints.mkdir(parents=True, exist_ok=True)
-                model_path = save_atomically(model.save, checkpoints / f"model_{model.num_timesteps}_steps.zip")
+                checkpoint_dir.mkdir(parents=True, exist_ok=True)
+                model_path = save_atomically(model.save, checkpoint_dir / f"model_{model.num_timesteps}_steps.zip")
                 if config.algorithm in OFF_POLICY:
                     save_atomically(model.save_replay_buffer,
-                                    checkpoints / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
+                                    checkpoint_dir / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
                 record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started, init_from)
             finally:
                 signal.signal(signal.SIGINT, previous)
