@@ -91,15 +91,11 @@ def _already_trained(job: Job) -> bool:
     """Whether the job's run folder holds a finished model of the same configuration, started from the
     same model (a benchmark run again into the same folder, e.g. after an interruption, evaluates it
     instead of training again)."""
-    import yaml
-
-    from .train import TRAINING_RECORD, load_run_config
+    from .train import load_run_config, training_record
 
     if not (job.run_dir / "model.zip").exists():
         return False
-    record_path = job.run_dir / TRAINING_RECORD
-    record = (yaml.safe_load(record_path.read_text()) or {}) if record_path.is_file() else {}
-    started_from = record.get("init_from")
+    started_from = (training_record(job.run_dir) or {}).get("init_from")
     return (load_run_config(job.run_dir / "model.zip").as_yaml_dict() == job.config.as_yaml_dict()
             and started_from == (None if job.init_from is None else str(job.init_from)))
 

@@ -298,15 +298,21 @@ def record_training(run_dir: Path, timesteps: int, wall_seconds: float, init_fro
 
     from .. import __version__
 
-    path = run_dir / TRAINING_RECORD
-    earlier = yaml.safe_load(path.read_text()) if path.is_file() else {}
+    earlier = training_record(run_dir) or {}
     record = {"timesteps": timesteps,
               "wall_seconds": round(float(earlier.get("wall_seconds", 0.0)) + wall_seconds, 1),
               "finished": time.strftime("%Y-%m-%d %H:%M %Z"), "machine": machine_description(),
               "emmi_gym": __version__, "torch": str(torch.__version__)}
     if init_from is not None or "init_from" in earlier:
         record["init_from"] = str(init_from) if init_from is not None else earlier["init_from"]
-    save_atomically(lambda target: Path(target).write_text(yaml.safe_dump(record, sort_keys=False)), path)
+    save_atomically(lambda target: Path(target).write_text(yaml.safe_dump(record, sort_keys=False)),
+                    run_dir / TRAINING_RECORD)
+
+
+def training_record(run_dir) -> dict | None:
+    """The run folder's :data:`TRAINING_RECORD` as written by :func:`record_training`; None if it has none."""
+    path = Path(run_dir) / TRAINING_RECORD
+    return (yaml.safe_load(path.read_text()) or {}) if path.is_file() else None
 
 
 def load_run_config(model_path) -> AgentConfig:
