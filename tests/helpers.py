@@ -1,6 +1,9 @@
 """Assertions shared by the test modules."""
 
 import numpy as np
+from scipy import ndimage
+
+from emmi_gym.world import rasterise
 
 
 def assert_same(a, b) -> None:
@@ -17,3 +20,16 @@ def assert_same(a, b) -> None:
         np.testing.assert_array_equal(a, b)
     else:
         assert a == b or (a != a and b != b)
+
+
+def independent_loops(world, resolution=0.1, min_span=3.0):
+    """Loops worth closing: holes of the reachable free space at least ``min_span`` m across in x and y.
+
+    (A pillar is a hole too, but going round it closes no loop of interest.)
+    """
+    truth = rasterise(world, resolution)
+    labels, _ = ndimage.label(~truth.reachable, structure=np.ones((3, 3)))
+    outside = labels[0, 0]
+    spans = [((s[0].stop - s[0].start) * resolution, (s[1].stop - s[1].start) * resolution)
+             for k, s in enumerate(ndimage.find_objects(labels), start=1) if k != outside]
+    return sum(1 for h, w in spans if h >= min_span and w >= min_span)

@@ -8,6 +8,7 @@ import numpy as np
 import pymunk
 import pytest
 import yaml
+from helpers import independent_loops
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -70,24 +71,9 @@ def test_builtin_worlds_are_the_expected_ones():
     assert loop.route("close_loop")[-1] == loop.place("start").xy
 
 
-def _independent_loops(world, resolution=0.1, min_span=3.0):
-    """Loops worth closing: holes of the reachable free space at least ``min_span`` m across in x and y.
-
-    (A pillar is a hole too, but going round it closes no loop of interest.)
-    """
-    from scipy import ndimage
-
-    truth = rasterise(world, resolution)
-    labels, _ = ndimage.label(~truth.reachable, structure=np.ones((3, 3)))
-    outside = labels[0, 0]
-    spans = [((s[0].stop - s[0].start) * resolution, (s[1].stop - s[1].start) * resolution)
-             for k, s in enumerate(ndimage.find_objects(labels), start=1) if k != outside]
-    return sum(1 for h, w in spans if h >= min_span and w >= min_span)
-
-
-def test_office_has_two_independent_loops():
-    assert _independent_loops(load_world("office")) >= 2
-    assert _independent_loops(load_world("loop_corridor")) == 1
+def test_office_has_twoindependent_loops():
+    assert independent_loops(load_world("office")) >= 2
+    assert independent_loops(load_world("loop_corridor")) == 1
 
 
 @pytest.mark.parametrize("seed", range(50))
@@ -99,7 +85,7 @@ def test_generated_world_connected_free_start_deterministic(seed):
 
 def test_generated_worlds_have_the_asked_loops_and_differ_by_seed():
     for n_loops in (0, 1, 3):
-        assert _independent_loops(generate_world(5, GeneratorConfig(n_loops=n_loops))) == n_loops
+        assert independent_loops(generate_world(5, GeneratorConfig(n_loops=n_loops))) == n_loops
     assert not np.array_equal(generate_world(1).walls, generate_world(2).walls)
 
 

@@ -21,6 +21,8 @@ from ..inputs.validation import (
 from ..slam.config import MAX_PARTICLES, MIN_RESOLUTION, RBPFConfig
 from ..world import GeneratorConfig, LaserConfig, OdometryNoise
 from ..world.images import DEFAULT_PIXEL_SIZE, PIXEL_SIZE
+from ..world.loop_worlds import LoopWorldConfig
+from ..world.map_sets import WORLD_FAMILIES
 from ..world.presets import LASER_PRESETS, ODOMETRY_PRESETS, laser_config, odometry_config
 
 REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage", "map_information")
@@ -47,9 +49,10 @@ class EnvConfig:
 
     - ``world``: a built-in name, a world file or map_server map (.yaml), a floor-plan image
       (.png/.pgm, read at ``pixel_size`` metres per pixel), a map set to draw from at every
-      reset (``"dungeon_maps/train"``, a folder, a glob; :mod:`emmi_gym.world.map_sets`), or
-      ``None``: a new generated world at every reset (``generator`` holds
-      :class:`~emmi_gym.world.GeneratorConfig` fields).
+      reset (``"dungeon_maps/train"``, a folder, a glob; :mod:`emmi_gym.world.map_sets`),
+      ``"loop_order"``: a new loop left open beside a new area at every reset (``generator`` holds
+      :class:`~emmi_gym.world.loop_worlds.LoopWorldConfig` fields), or ``None``: a new generated
+      lattice world at every reset (``generator`` holds :class:`~emmi_gym.world.GeneratorConfig` fields).
     - ``start_at``: ``"decision"`` drives the world's ``to_decision`` route with the RBPF
       running before the first observation (the paper's robot up to its step 65);
       ``"start"`` begins at the start pose.
@@ -77,9 +80,11 @@ class EnvConfig:
 
     world: str | None = option(
         "loop_corridor", Maybe(Text(), "a generated world per reset"),
-        help="a built-in name, world or map_server file, floor-plan image or map set; None: generated per reset")
+        help="a built-in name, world or map_server file, floor-plan image, map set or 'loop_order'; None: generated "
+             "per reset")
     generator: dict = option({}, Mapping(),
-                             help="GeneratorConfig fields of the generated worlds (with world=None)")
+                             help="GeneratorConfig fields of the generated worlds (with world=None), LoopWorldConfig "
+                                  "fields with world='loop_order'")
     pixel_size: float = option(DEFAULT_PIXEL_SIZE, PIXEL_SIZE,
                                help="metres per pixel of a floor-plan image")
     start_at: str = option(
@@ -158,8 +163,9 @@ class EnvConfig:
         return build(RBPFConfig, dict(self.slam, particles=self.particles, resolution=self.resolution), "slam",
                      source=SOURCE)
 
-    def generator_config(self) -> GeneratorConfig:
-        return build(GeneratorConfig, self.generator, "generator", source=SOURCE)
+    def generator_config(self) -> GeneratorConfig | LoopWorldConfig:
+        family = WORLD_FAMILIES[self.world][0] if self.world in WORLD_FAMILIES else GeneratorConfig
+        return build(family, self.generator, "generator", source=SOURCE)
 
     @property
     def scale(self) -> float:

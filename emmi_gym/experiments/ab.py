@@ -30,18 +30,18 @@ NEW_AREA_PLACE = "target_b"
 
 @dataclass(frozen=True)
 class ABSettings:
-    """What an A/B run is made of: ``LoopCorridor-v0`` on ``world`` with these options (and the
-    metrics of every filter update, ``update_records``, for the per-update curves)."""
+    """What an A/B run is made of: the env ``env_id`` with ``env_options`` (its own world unless they name
+    one), ``particles`` and ``max_decisions`` (and the metrics of every filter update,
+    ``update_records``, for the per-update curves)."""
 
-    world: str = "loop_corridor"
+    env_id: str = "emmi_gym/LoopCorridor-v0"
     particles: int = 15
     max_decisions: int = 40
     env_options: dict = field(default_factory=dict)
 
     def make_env(self) -> gym.Env:
-        return gym.make("emmi_gym/LoopCorridor-v0", world=self.world, particles=self.particles,
-                        max_decisions=self.max_decisions, coverage_target=1.0, update_records=True,
-                        **self.env_options)
+        return gym.make(self.env_id, particles=self.particles, max_decisions=self.max_decisions, coverage_target=1.0,
+                        update_records=True, **self.env_options)
 
 
 @dataclass
@@ -53,7 +53,11 @@ class ABRun:
     ``decision``, ``first_goal`` and ``second_goal`` are indices into ``rows`` (the last
     update before the decision, and the update at which each goal was reached; None if
     it never was). ``maps`` holds the expected map (eq. 6) at those moments,
-    ``paths`` the best particle's estimated path; ``final`` the ground-truth scores at the end.
+    ``paths`` the best particle's estimated path; ``final`` the ground-truth scores at the end, and
+    how the loop closed: ``closure_error``, the distance between the estimated and the true pose when
+    the robot got back to the loop's start (``target_a``), and ``loop_closed``, whether that is within
+    the scan matcher's capture radius (``match_radius``: the map agrees with itself where the loop
+    closes). ``walls`` are the world's (generated worlds differ per seed).
     """
 
     seed: int
@@ -67,6 +71,7 @@ class ABRun:
     maps: dict[str, np.ndarray]
     paths: dict[str, np.ndarray]
     extent: tuple[float, float, float, float]
+    walls: np.ndarray
 
     def at(self, event: str) -> dict | None:
         """The measures of the update at ``event`` ("decision", "first_goal", "second_goal", "end")."""
@@ -138,7 +143,7 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
     paths = {"decision": core.slam.paths[core.slam.best].copy()}
     new_area = new_area_now(core)
     new_area_truth = np.where(new_area, core.truth.grid, UNKNOWN)
-    new_area_on_arrival = float("nan")
+    new_area_on_arrival = closure_error = float("nan")
     truncated = False
     while not policy.done and not truncated:
         phase = policy.phase
@@ -151,19 +156,23 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
             paths[event] = core.slam.paths[core.slam.best].copy()
             if policy.goals[reached] == NEW_AREA_PLACE:
                 new_area_on_arrival = map_accuracy(maps[event], new_area_truth)
+            else:
+                closure_error = float(np.hypot(*(core.estimated_pose[:2] - core.true_path[-1][:2])))
     expected = core.expected_map
     final = {
         "map_accuracy": info["map_accuracy"], "oracle_accuracy": info["oracle_accuracy"],
         "wall_consistency": info["wall_consistency"], "ate": info["ate"], "coverage": info["coverage"],
         "new_area_accuracy_on_arrival": new_area_on_arrival,
         "new_area_accuracy": map_accuracy(expected, new_area_truth),
-        "new_area_cells": int(new_area.sum()), "sim_steps": info["sim_steps"], "decisions": core.decisions,
+        "new_area_cells": int(new_area.sum()), "closure_error": closure_error,
+        "loop_closed": (float(closure_error <= core.slam_config.match_radius) if np.isfinite(closure_error)
+                        else float("nan")), "sim_steps": info["sim_steps"], "decisions": core.decisions,
         "collisions": info["collisions"], "completed": policy.done,
     }
-    extent = core.geometry.extent
+    extent, walls = core.geometry.extent, core.world.walls
     env.close()
     return ABRun(seed, arm, POLICIES[arm], rows, events["decision"], events.get("first_goal"),
-                 events.get("second_goal"), final, maps, paths, extent)
+                 events.get("second_goal"), final, maps, paths, extent, walls)
 
 
 def _run(job: tuple[int, str, ABSettings]) -> ABRun:

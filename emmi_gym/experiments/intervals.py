@@ -18,12 +18,12 @@ from scipy import stats
 CONFIDENCE = 0.95
 
 #: Ranges of the measures the A/B summary and the benchmark report (absent: unbounded).
-PROPORTIONS = ("completed", "reached_target", "closed_loop_first")
+PROPORTIONS = ("completed", "reached_target", "closed_loop_first", "loop_closed")
 RANGES = {
     **{name: (0.0, 1.0) for name in PROPORTIONS},
     "map_accuracy": (0.0, 1.0), "oracle_accuracy": (0.0, 1.0), "wall_consistency": (0.0, 1.0),
     "new_area_accuracy": (0.0, 1.0), "new_area_accuracy_on_arrival": (0.0, 1.0),
-    "coverage": (0.0, 1.0), "revisit_share": (0.0, 1.0), "ate": (0.0, math.inf), "resamplings": (0.0, math.inf),
+    "coverage": (0.0, 1.0), "revisit_share": (0.0, 1.0), "ate": (0.0, math.inf), "closure_error": (0.0, math.inf), "resamplings": (0.0, math.inf),
     "sim_steps_to_target": (0.0, math.inf), "sim_steps": (0.0, math.inf), "decisions": (0.0, math.inf),
 }
 

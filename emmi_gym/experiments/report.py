@@ -27,6 +27,8 @@ SUMMARY_COLUMNS = {
     "new_area_accuracy_on_arrival": "new-area map accuracy on arriving there",
     "new_area_accuracy": "new-area map accuracy at the end",
     "ate": "final ATE (m)",
+    "closure_error": "pose error on getting back to the loop's start (m)",
+    "loop_closed": "loop closed within the matcher's capture radius",
     "coverage": "final coverage",
     "completed": "reached both goals",
 }
@@ -58,7 +60,8 @@ def run_measures(run: ABRun, horizon: int | None) -> dict:
     row["resamplings"] = sum(bool(r["resampled"]) for r in window) if horizon is not None else math.nan
     row.update({k: run.final[k] for k in ("map_accuracy", "oracle_accuracy", "wall_consistency",
                                            "new_area_accuracy_on_arrival", "new_area_accuracy",
-                                           "ate", "coverage", "sim_steps", "decisions", "collisions")})
+                                           "ate", "closure_error", "loop_closed", "coverage", "sim_steps",
+                                           "decisions", "collisions")})
     row["completed"] = float(run.final["completed"])
     return row
 
@@ -215,7 +218,7 @@ def plot_metrics(runs: list[ABRun], path: Path) -> None:
     plt.close(fig)
 
 
-def plot_maps(runs: list[ABRun], seed: int, walls: np.ndarray, path: Path) -> None:
+def plot_maps(runs: list[ABRun], seed: int, path: Path) -> None:
     """The paper's Fig. 6 (c)-(e) for one seed: the expected map at the decision point, after A closed
     the loop and after B entered the new area, with the best particle's path (orange) over the true
     walls (cyan)."""
@@ -233,7 +236,7 @@ def plot_maps(runs: list[ABRun], seed: int, walls: np.ndarray, path: Path) -> No
     for ax, (title, run, event) in zip(np.atleast_1d(axes), panels):
         ax.imshow(run.maps[event], cmap="gray_r", vmin=0, vmax=1, origin="lower", extent=run.extent,
                   interpolation="nearest")
-        for ax_, ay, bx, by, _ in walls:
+        for ax_, ay, bx, by, _ in run.walls:
             ax.plot([ax_, bx], [ay, by], color="tab:cyan", lw=0.5, alpha=0.7)
         path_xy = run.paths[event]
         ax.plot(path_xy[:, 0], path_xy[:, 1], color="tab:orange", lw=0.9)
@@ -252,8 +255,7 @@ def plot_maps(runs: list[ABRun], seed: int, walls: np.ndarray, path: Path) -> No
     plt.close(fig)
 
 
-def write_report(runs: list[ABRun], out_dir, walls: np.ndarray, settings_text: str,
-                 map_seed: int | None = None) -> dict[str, Path]:
+def write_report(runs: list[ABRun], out_dir, settings_text: str, map_seed: int | None = None) -> dict[str, Path]:
     """Write the CSVs, the markdown summary and both figures into ``out_dir``; returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -264,5 +266,5 @@ def write_report(runs: list[ABRun], out_dir, walls: np.ndarray, settings_text: s
     write_csv(files["runs"], rows)
     files["summary"].write_text(markdown_summary(rows, settings_text))
     plot_metrics(runs, files["metrics_figure"])
-    plot_maps(runs, runs[0].seed if map_seed is None else map_seed, walls, files["maps_figure"])
+    plot_maps(runs, runs[0].seed if map_seed is None else map_seed, files["maps_figure"])
     return files

@@ -25,7 +25,12 @@ from ..inputs.yaml_files import YAML_SUFFIXES
 from .generator import GeneratorConfig, generate_world
 from .images import DEFAULT_PIXEL_SIZE, IMAGE_SUFFIXES
 from .loader import load_world
+from .loop_worlds import LoopWorldConfig, generate_loop_world
 from .spec import WorldSpec
+
+#: Families of generated worlds, by the ``world`` name that draws one per reset: their options' class and
+#: their generator. ``world=None`` draws the lattice worlds of :func:`generate_world`.
+WORLD_FAMILIES = {"loop_order": (LoopWorldConfig, generate_loop_world)}
 
 #: Worlds of a set kept loaded (a plan's spec takes a few kB).
 CACHED_WORLDS = 512
@@ -68,16 +73,19 @@ class WorldSource:
     """Draws the world of each episode: :meth:`draw` takes the episode's generator.
 
     ``world``: a world name or file (always the same world), a map set (one of its maps per
-    reset), or None (a generated lattice world per reset, from ``generator``).
+    reset), a family of :data:`WORLD_FAMILIES` (one of its worlds per reset, from ``generator``, the
+    family's options) or None (a generated lattice world per reset, from ``generator``).
     """
 
-    def __init__(self, world: str | None, generator: GeneratorConfig = GeneratorConfig(),
+    def __init__(self, world: str | None, generator: GeneratorConfig | LoopWorldConfig = GeneratorConfig(),
                  pixel_size: float = DEFAULT_PIXEL_SIZE):
         self.generator = generator
         self.pixel_size = pixel_size
-        self.files = map_set_files(world) if world is not None else None
+        self.generate = WORLD_FAMILIES[world][1] if world in WORLD_FAMILIES else generate_world
+        generated = world is None or world in WORLD_FAMILIES
+        self.files = map_set_files(world) if not generated else None
         self.fixed: WorldSpec | None = None
-        if world is not None and self.files is None:
+        if not generated and self.files is None:
             self.fixed = load_world(world, pixel_size)
         self._cache: OrderedDict[Path, WorldSpec] = OrderedDict()
 
@@ -85,7 +93,7 @@ class WorldSource:
         if self.fixed is not None:
             return self.fixed
         if self.files is None:
-            return generate_world(rng, self.generator)
+            return self.generate(rng, self.generator)
         return self.load(self.files[int(rng.integers(len(self.files)))])
 
     def load(self, path: Path) -> WorldSpec:
