@@ -20,7 +20,8 @@ ALLOWED = {
     "scoring": {"geometry", "certainty", "slam"},
     "env": {"geometry", "inputs", "certainty", "world", "slam", "scoring", "navigation"},
     "policies": {"world"},
-    "experiments": {"geometry", "concurrency", "certainty", "formats", "world", "slam", "scoring", "policies"},
+    "experiments": {"geometry", "inputs", "concurrency", "certainty", "formats", "world", "slam", "scoring",
+                    "policies"},
     "training": {"inputs", "concurrency", "env", "policies", "experiments"},
     "pretrained": {"training"},
 }

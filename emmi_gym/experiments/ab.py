@@ -19,7 +19,7 @@ from scipy import ndimage
 from ..certainty import observed_cells
 from ..concurrency.parallel import run_in_processes
 from ..policies import make_policy
-from ..scoring.scores import map_accuracy
+from ..scoring.scores import absolute_trajectory_error, map_accuracy
 from ..world.ground_truth import FREE, UNKNOWN
 
 #: The two arms of the experiment and their scripted policies.
@@ -53,7 +53,8 @@ class ABRun:
     ``decision``, ``first_goal`` and ``second_goal`` are indices into ``rows`` (the last
     update before the decision, and the update at which each goal was reached; None if
     it never was). ``maps`` holds the expected map (eq. 6) at those moments,
-    ``paths`` the best particle's estimated path; ``final`` the ground-truth scores at the end, and
+    ``paths`` the best particle's estimated path; ``final`` the ground-truth scores at the end (with
+    :func:`loop_ate`, the ATE of the loop under the final best particle's path), and
     how the loop closed: ``closure_error``, the distance between the estimated and the true pose when
     the robot got back to the loop's start (``target_a``), and ``loop_closed``, whether that is within
     the scan matcher's capture radius (``match_radius``: the map agrees with itself where the loop
@@ -116,6 +117,15 @@ def closed_loop_first(true_xy: np.ndarray, world, geometry, new_area: np.ndarray
     return bool(back.size and (entered.size == 0 or back[0] < entered[0]))
 
 
+def loop_ate(loop_rows: list[dict], best_path: np.ndarray, true_path: np.ndarray, control_period: float) -> float:
+    """ATE (m, unaligned, as the env's) of the loop driven before the decision point under a particle's path:
+    the same true poses for A and B, so the A - B difference is which hypothesis of the loop survived.
+    ``loop_rows`` are the updates up to the decision (their ``time`` finds the true pose of each among the
+    simulator steps of ``true_path``)."""
+    steps = np.rint(np.array([row["time"] for row in loop_rows]) / control_period).astype(np.int64)
+    return absolute_trajectory_error(best_path[:len(loop_rows)], true_path[steps], align=False)
+
+
 def check_world(world) -> None:
     """Raise a ValueError naming what ``world`` lacks for the experiment: the places decision,
     target_a (back at the start: closes the loop), target_b (in the unexplored area) and a
@@ -160,6 +170,8 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
                 closure_error = float(np.hypot(*(core.estimated_pose[:2] - core.true_path[-1][:2])))
     expected = core.expected_map
     final = {
+        "loop_ate": loop_ate(rows[:events["decision"] + 1], core.slam.paths[core.slam.best], core.true_path,
+                             core.robot_config.control_period),
         "map_accuracy": info["map_accuracy"], "oracle_accuracy": info["oracle_accuracy"],
         "wall_consistency": info["wall_consistency"], "ate": info["ate"], "coverage": info["coverage"],
         "new_area_accuracy_on_arrival": new_area_on_arrival,

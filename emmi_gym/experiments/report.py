@@ -27,6 +27,7 @@ SUMMARY_COLUMNS = {
     "new_area_accuracy_on_arrival": "new-area map accuracy on arriving there",
     "new_area_accuracy": "new-area map accuracy at the end",
     "ate": "final ATE (m)",
+    "loop_ate": "ATE of the loop before the decision, final best particle (m)",
     "closure_error": "pose error on getting back to the loop's start (m)",
     "loop_closed": "loop closed within the matcher's capture radius",
     "coverage": "final coverage",
@@ -60,7 +61,7 @@ def run_measures(run: ABRun, horizon: int | None) -> dict:
     row["resamplings"] = sum(bool(r["resampled"]) for r in window) if horizon is not None else math.nan
     row.update({k: run.final[k] for k in ("map_accuracy", "oracle_accuracy", "wall_consistency",
                                            "new_area_accuracy_on_arrival", "new_area_accuracy",
-                                           "ate", "closure_error", "loop_closed", "coverage", "sim_steps",
+                                           "ate", "loop_ate", "closure_error", "loop_closed", "coverage", "sim_steps",
                                            "decisions", "collisions")})
     row["completed"] = float(run.final["completed"])
     return row

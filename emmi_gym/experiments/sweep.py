@@ -46,6 +46,7 @@ from .report import paired_differences, read_csv, summary_rows, write_csv
 #: The per-setting measures: A - B paired, with their labels (the robot time of each arm is reported beside).
 SWEEP_MEASURES = {
     "ate": "final ATE (m)",
+    "loop_ate": "ATE of the loop (m)",
     "oracle_accuracy": "accuracy against the oracle map",
     "new_area_accuracy": "new-area accuracy",
     "wall_consistency": "wall consistency",
@@ -138,14 +139,12 @@ def env_options(env_id: str, setting: dict) -> tuple[dict, dict]:
 
 
 def ab_settings(env_id: str, setting: dict, particles: int = 15, max_decisions: int = 40) -> ABSettings:
-    """The :class:`ABSettings` of one setting (checked: a bad option raises naming it)."""
-    from ..env.config import make_config
-
+    """The :class:`ABSettings` of one setting, checked by making its env (a bad option raises the env's
+    ``OptionError`` naming it; no world is drawn before a reset)."""
     options, run = env_options(env_id, setting)
     settings = ABSettings(env_id=env_id, particles=int(run.get("particles", particles)),
                           max_decisions=int(run.get("max_decisions", max_decisions)), env_options=options)
-    make_config(**{**gym.spec(env_id).kwargs, **options, "particles": settings.particles,
-                   "max_decisions": settings.max_decisions})
+    settings.make_env().close()
     return settings
 
 
