@@ -10,6 +10,7 @@ entropy eq. 12, ...) and ends when its policy has reached both goals (or after
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import gymnasium as gym
@@ -56,7 +57,10 @@ class ABRun:
     ``paths`` the best particle's estimated path; ``final`` the ground-truth scores at the end (with
     :func:`loop_ate`, the ATE of the loop under the final best particle's path), and
     how the loop closed: ``closure_error``, the distance between the estimated and the true pose when
-    the robot got back to the loop's start (``target_a``), and ``loop_closed``, whether that is within
+    the robot got back to the loop's start (``target_a``), ``loop_hypotheses``, how many distinct poses at
+    the decision point the particles still held at the end of the last step before the robot came within
+    the laser's range of the start (the hypotheses resampling left for the closure), and
+    ``loop_closed``, whether that error is within
     the scan matcher's capture radius (``match_radius``: the map agrees with itself where the loop
     closes). ``walls`` are the world's (generated worlds differ per seed).
     """
@@ -117,6 +121,12 @@ def closed_loop_first(true_xy: np.ndarray, world, geometry, new_area: np.ndarray
     return bool(back.size and (entered.size == 0 or back[0] < entered[0]))
 
 
+def hypotheses_of(paths: np.ndarray, update: int) -> int:
+    """How many distinct poses the particles' paths (M, T, 3) hold at ``update``: the hypotheses of the path
+    up to there that resampling has left."""
+    return len(np.unique(paths[:, update], axis=0))
+
+
 def loop_ate(loop_rows: list[dict], best_path: np.ndarray, true_path: np.ndarray, control_period: float) -> float:
     """ATE (m, unaligned, as the env's) of the loop driven before the decision point under a particle's path:
     the same true poses for A and B, so the A - B difference is which hypothesis of the loop survived.
@@ -154,10 +164,16 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
     new_area = new_area_now(core)
     new_area_truth = np.where(new_area, core.truth.grid, UNKNOWN)
     new_area_on_arrival = closure_error = float("nan")
+    loop_start, reach = core.world.place("target_a"), core.laser_config.max_range
+    loop_hypotheses, approaching = hypotheses_of(core.slam.paths, events["decision"]), True
     truncated = False
     while not policy.done and not truncated:
         phase = policy.phase
         _, _, _, truncated, info = env.step(policy(env))
+        x, y, _ = core.true_path[-1]
+        approaching = approaching and math.hypot(x - loop_start.x, y - loop_start.y) > reach
+        if approaching:
+            loop_hypotheses = hypotheses_of(core.slam.paths, events["decision"])
         rows += [dict(r, phase=phase) for r in info["rbpf_updates"]]
         for reached in range(phase, policy.advance(env)):
             event = ("first_goal", "second_goal")[reached]
@@ -176,7 +192,7 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
         "wall_consistency": info["wall_consistency"], "ate": info["ate"], "coverage": info["coverage"],
         "new_area_accuracy_on_arrival": new_area_on_arrival,
         "new_area_accuracy": map_accuracy(expected, new_area_truth),
-        "new_area_cells": int(new_area.sum()), "closure_error": closure_error,
+        "new_area_cells": int(new_area.sum()), "closure_error": closure_error, "loop_hypotheses": loop_hypotheses,
         "loop_closed": (float(closure_error <= core.slam_config.match_radius) if np.isfinite(closure_error)
                         else float("nan")), "sim_steps": info["sim_steps"], "decisions": core.decisions,
         "collisions": info["collisions"], "completed": policy.done,

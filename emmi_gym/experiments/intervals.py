@@ -23,7 +23,8 @@ RANGES = {
     **{name: (0.0, 1.0) for name in PROPORTIONS},
     "map_accuracy": (0.0, 1.0), "oracle_accuracy": (0.0, 1.0), "wall_consistency": (0.0, 1.0),
     "new_area_accuracy": (0.0, 1.0), "new_area_accuracy_on_arrival": (0.0, 1.0),
-    "coverage": (0.0, 1.0), "revisit_share": (0.0, 1.0), "ate": (0.0, math.inf), "loop_ate": (0.0, math.inf), "closure_error": (0.0, math.inf), "resamplings": (0.0, math.inf),
+    "coverage": (0.0, 1.0), "revisit_share": (0.0, 1.0), "ate": (0.0, math.inf), "loop_ate": (0.0, math.inf),
+    "closure_error": (0.0, math.inf), "loop_hypotheses": (1.0, math.inf), "resamplings": (0.0, math.inf),
     "sim_steps_to_target": (0.0, math.inf), "sim_steps": (0.0, math.inf), "decisions": (0.0, math.inf),
 }
 

@@ -30,6 +30,7 @@ SUMMARY_COLUMNS = {
     "loop_ate": "ATE of the loop before the decision, final best particle (m)",
     "closure_error": "pose error on getting back to the loop's start (m)",
     "loop_closed": "loop closed within the matcher's capture radius",
+    "loop_hypotheses": "hypotheses of the loop left as the robot nears its start",
     "coverage": "final coverage",
     "completed": "reached both goals",
 }
@@ -60,8 +61,8 @@ def run_measures(run: ABRun, horizon: int | None) -> dict:
     window = run.rows[run.decision + 1: run.decision + 1 + (horizon or 0)]
     row["resamplings"] = sum(bool(r["resampled"]) for r in window) if horizon is not None else math.nan
     row.update({k: run.final[k] for k in ("map_accuracy", "oracle_accuracy", "wall_consistency",
-                                           "new_area_accuracy_on_arrival", "new_area_accuracy",
-                                           "ate", "loop_ate", "closure_error", "loop_closed", "coverage", "sim_steps",
+                                           "new_area_accuracy_on_arrival", "new_area_accuracy", "ate", "loop_ate",
+                                           "closure_error", "loop_closed", "loop_hypotheses", "coverage", "sim_steps",
                                            "decisions", "collisions")})
     row["completed"] = float(run.final["completed"])
     return row

@@ -52,6 +52,7 @@ SWEEP_MEASURES = {
     "wall_consistency": "wall consistency",
     "loop_closed": "loop closed within the capture radius",
     "closure_error": "pose error back at the start (m)",
+    "loop_hypotheses": "hypotheses of the loop left then",
     "sim_steps": "robot time (simulator steps)",
 }
 #: Keys of a setting that are not env options.
