@@ -13,11 +13,12 @@ ENV_IDS = {
     "LoopCorridor-v0": dict(world="loop_corridor", start_at="decision", action_mode="waypoint",
                             laser={"preset": "sick_lms200", "max_range": 8.0}, odometry_noise="poor"),
     # the paper's experiment generalised: a corridor loop, featureless along its length, left open at the decision
-    # point beside a new area with a loop of its own, a new world per seed (emmi_gym.world.loop_worlds); there the
-    # new area's own loop closure resamples away the hypotheses that would close the old loop (docs/ab.md)
-    "LoopOrder-v0": dict(world="loop_order", generator={"size_jitter": 0.15}, start_at="decision",
-                         action_mode="waypoint", laser={"preset": "sick_lms200", "max_range": 8.0},
-                         odometry_noise="poor"),
+    # point beside a long dead-end new area, a new world per seed (emmi_gym.world.loop_worlds); exploring the new
+    # area first and back resamples away hypotheses that would close the loop (docs/ab.md#when-the-order-matters)
+    "LoopOrder-v0": dict(world="loop_order",
+                         generator={"new_area_length": 20.0, "new_area_loop": False, "size_jitter": 0.15},
+                         start_at="decision", action_mode="waypoint",
+                         laser={"preset": "sick_lms200", "max_range": 8.0}, odometry_noise="poor"),
     "Explore-v0": dict(world=None, start_at="start", action_mode="waypoint"),
     "ExploreVelocity-v0": dict(world=None, start_at="start", action_mode="velocity"),
     # the hard configuration: real floor plans, a SICK LMS200 at its 8 m range, poor odometry; rooms wider than
