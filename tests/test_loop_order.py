@@ -8,6 +8,7 @@ what the commands write and that the options reach the env, not what the experim
 import csv
 import hashlib
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -163,3 +164,10 @@ def test_a_sweep_writes_its_table_and_figure_and_resumes(tmp_path, capsys):
 def test_a_bad_sweep_file_names_the_field(tmp_path, grid, extra, message):
     with pytest.raises(SweepFileError, match=message.replace("[", r"\[").replace(".", r"\.")):
         read_sweep(write_sweep(tmp_path / "bad.yaml", grid, extra))
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).resolve().parent.parent / "sweeps").glob("*.yaml")),
+                         ids=lambda p: p.name)
+def test_the_shipped_sweeps_read(path):
+    sweep = read_sweep(path)  # the docs quote them: every setting makes its env
+    assert len(sweep.settings) >= 6 and sweep.config.seeds >= 20 and len(sweep.figure_keys) == 2
