@@ -171,3 +171,17 @@ def test_a_bad_sweep_file_names_the_field(tmp_path, grid, extra, message):
 def test_the_shipped_sweeps_read(path):
     sweep = read_sweep(path)  # the docs quote them: every setting makes its env
     assert len(sweep.settings) >= 6 and sweep.config.seeds >= 20 and len(sweep.figure_keys) == 2
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["ab", "--odometry", "bogus"], "odometry_noise"),
+    (["ab", "--set", "generator.new_area_length"], "--set expects KEY=VALUE"),
+    (["ab", "--laser-fov", "400"], "expected a finite number in (0, 360]"),
+    (["ab", "--world", "loop_order", "--set", "generator.new_area_length=2"], "generator.new_area_length"),
+    (["ab", "--sweep", "missing.yaml"], "missing.yaml"),
+])
+def test_bad_ab_options_are_clear_errors(argv, message, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv + ["--out", "unused"])
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
