@@ -180,8 +180,8 @@ def test_the_shipped_sweeps_read(path):
     (["ab", "--world", "loop_order", "--set", "generator.new_area_length=2"], "generator.new_area_length"),
     (["ab", "--sweep", "missing.yaml"], "missing.yaml"),
 ])
-def test_bad_ab_options_are_clear_errors(argv, message, capsys):
+def test_bad_ab_options_are_clear_errors(argv, message, capsys, tmp_path):
     with pytest.raises(SystemExit) as exit_:
-        main(argv + ["--out", "unused"])
+        main(argv + ["--out", str(tmp_path / "out")])
     assert exit_.value.code == 2
     assert message in capsys.readouterr().err
