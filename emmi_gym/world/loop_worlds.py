@@ -44,10 +44,12 @@ from .spec import WorldSpec
 #: Centre-line distance from the top of the loop down to the decision point, and to the top of O1.
 _DECISION_DEPTH = 5.0
 _O1_TOP_DEPTH = 6.0
-#: Pillars: length along the wall and depth into the corridor (m); the smallest loop height that
-#: leaves a wall of at least a metre between O2 and O1.
+#: Pillars: length along the wall and depth into the corridor (m).
 _PILLAR = (0.6, 0.35)
+#: Drawn sizes are rounded to this (m).
 _GRID = 0.5
+#: The longest side of a loop or new area before jitter (m); the env refuses a world whose maps would
+#: not fit in memory (``env.memory``) when it is drawn.
 MAX_SIDE = 200.0
 
 
@@ -133,7 +135,6 @@ def loop_world_data(rng: np.random.Generator, config: LoopWorldConfig, name: str
                   {"polyline": {"points": [[0, o2_top], [-d + w, o2_top], [-d + w, o1_bottom], [0, o1_bottom]]}},
                   {"segment": {"from": [0, o2_top], "to": [0, o1_bottom]}}]
         target_b = (-d + h, round((o1_top + o2_bottom) / 2, 3))
-        explore = ["decision", [h, o1_bottom + h], [-d + h, o1_bottom + h], list(target_b)]
         annex = (((0.0, o1_top), (-d, o1_top), (0, -1)), ((-d, o1_top), (-d, o2_bottom), (1, 0)),
                  ((-d, o2_bottom), (0.0, o2_bottom), (0, 1)))
     else:
@@ -141,10 +142,10 @@ def loop_world_data(rng: np.random.Generator, config: LoopWorldConfig, name: str
                   {"polyline": {"points": [[0, o1_top], [-d, o1_top], [-d, o2_bottom], [-d + w, o2_bottom],
                                            [-d + w, o1_bottom], [0, o1_bottom]]}}]
         target_b = (-d + h, o2_bottom + h)
-        explore = ["decision", [h, o1_bottom + h], [-d + h, o1_bottom + h], list(target_b)]
         annex = (((0.0, o1_top), (-d, o1_top), (0, -1)), ((-d, o1_top), (-d, o2_bottom), (1, 0)))
     for a, b, inward in annex:
         walls += _pillars(a, b, inward, c.new_area_pillar_spacing, rng, margin)
+    explore = ["decision", [h, o1_bottom + h], [-d + h, o1_bottom + h], list(target_b)]
     kind = "a loop of its own" if c.new_area_loop else "a dead end"
     return {
         "name": name,
