@@ -165,3 +165,30 @@ def test_the_info_page_states_every_key():
     text = (DOCS / "info.md").read_text()
     missing = sorted(key for key in keys if f"| `{key}` |" not in text)
     assert not missing, f"docs/info.md does not state the info keys {missing}"
+
+
+#: The largest a docs page may be, in bytes of its Markdown with the files it includes: a page is read
+#: as a reference, so a longer one is split by topic (as the benchmarks are, one page per topic).
+MAX_PAGE_BYTES = 12 * 1024
+#: A pymdownx.snippets line, which includes a file (relative to the repository root) into the page.
+SNIPPET = re.compile(r'^--8<-- "([^"]+)"$', re.M)
+
+
+def page_bytes(page: Path) -> int:
+    """The size of ``page`` as the site renders it: its own bytes plus those of the files it includes."""
+    text = page.read_text()
+    included = sum(len((ROOT / name).read_bytes()) for name in SNIPPET.findall(text))
+    return len(SNIPPET.sub("", text).encode()) + included
+
+
+def test_page_size_counts_included_files(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text('# Changes\n\n--8<-- "CHANGELOG.md"\n')
+    assert page_bytes(page) == len(b"# Changes\n\n\n") + len((ROOT / "CHANGELOG.md").read_bytes())
+
+
+def test_no_docs_page_exceeds_12_kib():
+    sizes = {str(p.relative_to(DOCS)): page_bytes(p) for p in DOCS.rglob("*.md")}
+    too_large = {name: size for name, size in sorted(sizes.items()) if size > MAX_PAGE_BYTES}
+    assert not too_large, (f"docs pages over {MAX_PAGE_BYTES} bytes: {too_large}; split them by topic "
+                           "(see docs/benchmarks/) or move figures to the benchmarks pages")
