@@ -204,6 +204,21 @@ def test_a_model_whose_weights_are_not_torchs_names_the_member(tmp_path, saved_m
         check_model_file(model, "PPO")
 
 
+def test_weights_in_torchs_format_that_torch_cannot_load_name_the_file(tmp_path, saved_model):
+    import pickle
+
+    from emmi_gym.training.model_files import load_model_file
+
+    weights = io.BytesIO()
+    with zipfile.ZipFile(weights, "w") as archive:  # torch.save's layout, a pickle torch's weights-only loader refuses
+        archive.writestr("archive/data.pkl", pickle.dumps(print, protocol=2))
+        archive.writestr("archive/version", "3\n")
+    model = write_zip(tmp_path / "model.zip", dict(saved_model, **{"policy.pth": weights.getvalue()}))
+    with pytest.raises(ModelFileError, match=rf"{model}: expected a PPO model that Stable-Baselines3 can load "
+                                             r"\((UnpicklingError|RuntimeError): "):
+        load_model_file(model, "PPO")
+
+
 def test_a_model_with_a_bad_crc_is_named_damaged(tmp_path, saved_model, capsys):
     model = write_zip(tmp_path / "model.zip", {name: data for name, data in saved_model.items()})
     raw = bytearray(model.read_bytes())
@@ -355,3 +370,10 @@ def test_episodes_are_made_when_asked_for():
     tracemalloc.stop()
     on_set = episodes_on("dungeon_maps/test", 3, 5)
     assert [seed for _, seed in on_set] == [5, 5, 5] and len({world for world, _ in on_set}) == 3
+
+
+def test_jobs_from_a_generator_run_in_worker_processes():
+    from emmi_gym.concurrency.parallel import run_in_processes
+
+    jobs = (-k for k in range(40))  # a generator: taken a few jobs per worker at a time
+    assert sorted(run_in_processes(abs, jobs, total=40, workers=2, progress=False)) == list(range(40))
