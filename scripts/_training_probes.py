@@ -158,13 +158,15 @@ def training_probes(folder: Path) -> list[Probe]:
     # 1. --resume with another configuration
     for other in ("ppo", "explore"):
         r1 = run_copy(f"R1_{other}")
-        probes.append(Probe(f"1. train {other}.yaml --resume --out R (another {'algorithm' if other == 'ppo' else 'env id'})",
+        what = "algorithm" if other == "ppo" else "env id"
+        probes.append(Probe(f"1. train {other}.yaml --resume --out R (another {what})",
                             [*cli, "train", cfg[other], "--resume", "--out", str(r1), "--quiet"],
                             r"config|algorithm|env", keep=[r1 / "config.yaml", r1 / "model.zip", r1 / "training.yaml"]))
     # 2. clone into a finished run
     r2 = run_copy("R2")
-    probes.append(Probe("2. clone --out EXISTING run", [*cli, "clone", cfg["corridor"], "--policy", "frontier",
-                                                        "--episodes", "1", "--workers", "1", "--out", str(r2), "--quiet"],
+    probes.append(Probe("2. clone --out EXISTING run",
+                        [*cli, "clone", cfg["corridor"], "--policy", "frontier", "--episodes", "1", "--workers", "1",
+                         "--out", str(r2), "--quiet"],
                         r"R2|exist|overwrite", keep=[r2 / "model.zip", r2 / "config.yaml", r2 / "training.yaml"]))
     # 3. a new run into an interrupted one
     r3 = run_copy("R3")
@@ -180,12 +182,14 @@ def training_probes(folder: Path) -> list[Probe]:
     for episodes in ("0", "-1"):
         r5 = run_copy(f"R5_{episodes}")
         (r5 / "checkpoint_scores.csv").write_text(CURVE)
-        probes.append(Probe(f"5. score_checkpoints.py R --episodes {episodes}", [*score, str(r5), "--episodes", episodes],
+        probes.append(Probe(f"5. score_checkpoints.py R --episodes {episodes}",
+                            [*score, str(r5), "--episodes", episodes],
                             r"--episodes: expected an integer in \[1, 100000\]", keep=[r5 / "checkpoint_scores.csv"]))
     # 6 and 13. plot_learning_curves.py and score_checkpoints.py
     csvs = {"empty": "", "header_only": MEASURES, "all_nan": MEASURES + "8,nan,nan,nan,nan\n16,,,,\n",
             "no_ate_column": "timesteps,oracle_accuracy,sim_steps,coverage\n8,0.5,100,0.4\n",
-            "text_in_a_number": MEASURES + "8,0.5,fast,100,0.4\n", "131_KB_field": MEASURES + '8,"' + "x" * 131_100 + '"\n',
+            "text_in_a_number": MEASURES + "8,0.5,fast,100,0.4\n",
+            "131_KB_field": MEASURES + '8,"' + "x" * 131_100 + '"\n',
             "good": CURVE}
     for name, text in csvs.items():
         (f / f"csv_{name}").mkdir()
@@ -198,13 +202,14 @@ def training_probes(folder: Path) -> list[Probe]:
     (f / "a_file").write_text("x")
     good = str(f / "csv_good")
     expected = {"empty": "the file is empty", "header_only": "holds only the header",
-                "all_nan": "expected a finite value in at least one row", "no_ate_column": r"with the columns \['ate'\]",
-                "text_in_a_number": r":2: field 'ate': expected a number", "131_KB_field": "field larger than field limit",
-                "utf16": "UTF-8", "latin1": "UTF-8"}
+                "all_nan": "expected a finite value in at least one row",
+                "no_ate_column": r"with the columns \['ate'\]",
+                "text_in_a_number": r":2: field 'ate': expected a number",
+                "131_KB_field": "field larger than field limit", "utf16": "UTF-8", "latin1": "UTF-8"}
     for name, pattern in expected.items():
         out = f / f"plot_{name}.png"
-        probes.append(Probe(f"{'13' if name in ('no_ate_column', 'text_in_a_number', '131_KB_field', 'latin1') else '6'}"
-                            f". plot_learning_curves.py: {name.replace('_', ' ')} CSV",
+        item = "13" if name in ("no_ate_column", "text_in_a_number", "131_KB_field", "latin1") else "6"
+        probes.append(Probe(f"{item}. plot_learning_curves.py: {name.replace('_', ' ')} CSV",
                             [*plot, str(f / f"csv_{name}"), "--out", str(out)], f"eval_ground_truth.csv.*{pattern}"))
     probes += [
         Probe("6. plot_learning_curves.py --baselines-csv garbage", [*plot, good, "--baselines-csv",
@@ -225,14 +230,14 @@ def training_probes(folder: Path) -> list[Probe]:
     inf = _demonstrations(obs_pose=np.array([[np.inf, 0, 0]] + [[0, 0, 0]] * 2, np.float32))
     np.savez(f / "inf.npz", **inf)
     probes.append(Probe("7. clone --demos with one inf in the observations",
-                        [*cli, "clone", cfg["corridor"], "--demos", str(f / "inf.npz"), "--out", str(f / "C7"), "--quiet"],
+                        [*cli, "clone", cfg["corridor"], "--demos", str(f / "inf.npz"), "--out", str(f / "C7"),
+                         "--quiet"],
                         r"inf\.npz: field 'obs_pose': expected finite observations"))
     nan_model = f / "nan" / "model.zip"
     nan_model.parent.mkdir()
     shutil.copyfile(run / "config.yaml", nan_model.parent / "config.yaml")
-    subprocess.run([*py, "import torch; from sb3_contrib import MaskablePPO; m = MaskablePPO.load({!r}); "
-                         "next(m.policy.parameters()).data.fill_(float('nan')); m.save({!r})".format(str(model),
-                                                                                                   str(nan_model))],
+    subprocess.run([*py, f"from sb3_contrib import MaskablePPO; m = MaskablePPO.load({str(model)!r}); "
+                         f"next(m.policy.parameters()).data.fill_(float('nan')); m.save({str(nan_model)!r})"],
                    check=True, capture_output=True)
     probes.append(Probe("7. train --init-from a model with NaN parameters",
                         [*cli, "train", cfg["corridor24"], "--init-from", str(nan_model), "--out", str(f / "T7"),
@@ -279,8 +284,8 @@ def training_probes(folder: Path) -> list[Probe]:
     np.savez_compressed(big, **_demonstrations(n=rows, obs_map=np.zeros((rows, 2, 64, 64), np.uint8)))
     probes += [
         Probe("10. load demonstrations of 0.6 GB from a few MB (under 1 GB: read once, not copied)",
-              [*py, f"from emmi_gym.training.demonstrations import Demonstrations; d = Demonstrations.load({str(big)!r});"
-                    f" print(len(d), 'decisions')"],
+              [*py, "from emmi_gym.training.demonstrations import Demonstrations; "
+                    f"d = Demonstrations.load({str(big)!r}); print(len(d), 'decisions')"],
               success=lambda last, _: None if last == f"{rows} decisions" else last),
         Probe("10. clone --episodes 10**9", [*cli, "clone", cfg["corridor"], "--episodes", str(10**9), "--out",
                                              str(f / "C10")], r"--episodes: expected an integer in \[1, 100000\]"),
@@ -295,7 +300,8 @@ def training_probes(folder: Path) -> list[Probe]:
                                                r"nested at most 100 deep"),
                   "garbage policy.pth": (model_folder("M_garbage", dict(members, **{"policy.pth": b"garbage" * 100})),
                                          r"field 'policy\.pth': expected PyTorch weights"),
-                  "a 250 MB policy.pth bomb": (model_folder("M_bomb", dict(members, **{"policy.pth": bytes(250 * 10**6)})),
+                  "a 250 MB policy.pth bomb": (model_folder("M_bomb", dict(members,
+                                                                           **{"policy.pth": bytes(250 * 10**6)})),
                                                r"field 'policy\.pth': expected PyTorch weights"),
                   "a bad CRC": (model_folder("M_crc", source=_bad_crc(model, f / "crc.zip")), r"CRC-32 does not match")}
     for name, (path, pattern) in bad_models.items():

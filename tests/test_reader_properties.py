@@ -28,8 +28,8 @@ EXAMPLES = settings(max_examples=40, deadline=None)
 scalars = st.none() | st.booleans() | st.integers(-2**70, 2**70) | st.floats() | st.text(max_size=12)
 
 
-def structures(keys=st.text(max_size=8)):
-    """Nested lists and mappings of scalars, the mappings' keys drawn from ``keys`` (or text)."""
+def structures(keys):
+    """Nested lists and mappings of scalars, the mappings' keys drawn from ``keys`` or any short text."""
     return st.recursive(scalars, lambda inner: st.lists(inner, max_size=4) |
                         st.dictionaries(keys | st.text(max_size=8), inner, max_size=5), max_leaves=12)
 

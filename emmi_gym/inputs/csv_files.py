@@ -51,7 +51,7 @@ def read_csv_file(path, what: str, required: Iterable[str] = (), numeric: Iterab
             if len(fields) != len(header):
                 raise CsvFileError(f"{source}:{reader.line_num}", "", f"{len(header)} fields, as the header names",
                                    f"{len(fields)} fields")
-            row = dict(zip(header, fields))
+            row = dict(zip(header, fields, strict=True))
             for column in numeric:
                 row[column] = _number(row[column], f"{source}:{reader.line_num}", column)
             rows.append(row)

@@ -70,7 +70,7 @@ class Demonstrations:
         joined = {name: np.empty((sum(rows), *array.shape[1:]), array.dtype)
                   for name, array in wanted.items() if name != "episodes"}
         episodes, start = 0, 0
-        for (path, arrays), n in zip(files.items(), rows):
+        for (path, arrays), n in zip(files.items(), rows, strict=True):
             part = slice(start, start + n)
             played = int(read_array_into(path, arrays["episodes"], np.empty((), arrays["episodes"].dtype),
                                          DemonstrationsError))

@@ -103,17 +103,17 @@ def draw(groups: dict[str, list[dict]], baselines: dict[str, dict[str, float]], 
     for k, (label, runs) in enumerate(groups.items()):
         length = min(len(curve["timesteps"]) for curve in runs)
         steps = runs[0]["timesteps"][:length].astype(np.int64)
-        for ax, measure in zip(axes, MEASURES):
+        for ax, measure in zip(axes, MEASURES, strict=True):
             values = np.array([curve[measure][:length] for curve in runs])
             name = label if len(runs) == 1 else f"{label} ({len(runs)} runs)"
             ax.plot(steps, values.mean(axis=0), marker="o", ms=3, color=f"C{k}", label=name)
             if len(runs) > 1:
                 ax.fill_between(steps, values.min(axis=0), values.max(axis=0), color=f"C{k}", alpha=0.15)
     for k, (policy, means) in enumerate(baselines.items()):
-        for ax, measure in zip(axes, MEASURES):
+        for ax, measure in zip(axes, MEASURES, strict=True):
             if math.isfinite(means[measure]):
                 ax.axhline(means[measure], color=f"C{len(groups) + k}", ls="--", lw=1, label=policy)
-    for ax, measure in zip(axes, MEASURES):
+    for ax, measure in zip(axes, MEASURES, strict=True):
         ax.set_xlabel("decisions trained")
         ax.set_title(f"held-out: {MEASURES[measure]}", fontsize=9)
         ax.grid(alpha=0.3)
