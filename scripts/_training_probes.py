@@ -284,8 +284,8 @@ def training_probes(folder: Path) -> list[Probe]:
     np.savez_compressed(big, **_demonstrations(n=rows, obs_map=np.zeros((rows, 2, 64, 64), np.uint8)))
     probes += [
         Probe("10. load demonstrations of 0.6 GB from a few MB (under 1 GB: read once, not copied)",
-              [*py, "from emmi_gym.training.demonstrations import Demonstrations; "
-                    f"d = Demonstrations.load({str(big)!r}); print(len(d), 'decisions')"],
+              [*py, "from emmi_gym.training.imitation import Demonstrations; "  # as clone --demos loads one file
+                    f"d = Demonstrations.joined([Demonstrations.load({str(big)!r})]); print(len(d), 'decisions')"],
               success=lambda last, _: None if last == f"{rows} decisions" else last),
         Probe("10. clone --episodes 10**9", [*cli, "clone", cfg["corridor"], "--episodes", str(10**9), "--out",
                                              str(f / "C10")], r"--episodes: expected an integer in \[1, 100000\]"),

@@ -530,7 +530,12 @@ def run_probe(command: list[str], limit: float = PROBE_LIMIT, pick: str | None =
     source = (f"import json, sys\n{inspect.getsource(_measure)}\n"
               f"print(json.dumps(_measure(json.loads(sys.argv[1]), {limit!r}, {MEMORY_CAP_MB!r}, {pick!r})))")
     result = subprocess.run([sys.executable, "-c", source, json.dumps(command)], capture_output=True, text=True, check=False)
-    return json.loads(result.stdout.strip().splitlines()[-1])
+    lines = result.stdout.strip().splitlines()
+    if not lines:  # the small process measuring the probe was killed too (the kernel's out-of-memory killer)
+        return {"rc": result.returncode, "seconds": float("nan"), "peak_mb": float("nan"), "progress": False,
+                "killed": "the probe's runner died (out of memory?)", "last_output": None, "last": "",
+                "traceback": False}
+    return json.loads(lines[-1])
 
 
 def probes(folder: Path, only: str | None = None) -> None:
