@@ -332,6 +332,7 @@ def test_demonstration_files_are_read_once_into_one_set_of_arrays(tmp_path):
     both = Demonstrations.load(tmp_path / "a.npz", tmp_path / "b.npz")
     assert len(both) == 2003 and both.episodes == 2 and both.observations["map"][2000:].all()
     assert np.array_equal(both.actions, np.concatenate([big["actions"], np.arange(3) % 8]))
+    assert len(Demonstrations.load(tmp_path / "b.npz", tmp_path / "b.npz")) == 6  # given twice, fitted twice
 
 
 def test_a_damaged_demonstrations_member_is_named(tmp_path):

@@ -19,9 +19,9 @@ _STRING = re.compile(rb'"[^"\\]*(?:\\.[^"\\]*)*"')
 def json_depth(raw: bytes) -> int:
     """How deep the arrays and objects of the JSON text ``raw`` nest (brackets inside strings not counted)."""
     code = np.frombuffer(_STRING.sub(b'""', raw), np.uint8)
-    opens = np.isin(code, np.frombuffer(b"[{", np.uint8))
-    steps = opens.astype(np.int64) - np.isin(code, np.frombuffer(b"]}", np.uint8))
-    return int(np.cumsum(steps).max(initial=0))
+    opens = np.isin(code, np.frombuffer(b"[{", np.uint8)).view(np.int8)
+    steps = opens - np.isin(code, np.frombuffer(b"]}", np.uint8)).view(np.int8)
+    return int(np.cumsum(steps, dtype=np.int32).max(initial=0))
 
 
 def parse_json(raw: bytes, source: str, what: str, error=FieldError):

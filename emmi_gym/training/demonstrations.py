@@ -52,25 +52,27 @@ class Demonstrations:
     def load(cls, *paths) -> Demonstrations:
         """The decisions of the files :meth:`save` wrote to ``paths``, in order, as one set; a
         :class:`DemonstrationsError` naming the file and member for anything else (see the module)."""
-        files = {Path(path): _declared(path) for path in paths}
-        first, wanted = next(iter(files.items()))
-        for path, arrays in files.items():
-            for name in arrays.keys() | wanted.keys():
+        if not paths:
+            raise ValueError("Demonstrations.load: no demonstrations file given")
+        files = [(Path(path), _declared(path)) for path in paths]  # a file given twice counts twice
+        first, wanted = files[0]
+        for path, arrays in files:
+            for name in sorted(arrays.keys() | wanted.keys()):
                 if name in ("actions", "episodes"):
                     continue
                 if name not in arrays or name not in wanted or arrays[name].shape[1:] != wanted[name].shape[1:] \
                         or arrays[name].dtype != wanted[name].dtype:
                     raise DemonstrationsError(str(path), name, f"the members and shapes of {first}: {_rows(wanted)}",
                                               _rows(arrays))
-        total = sum(array.nbytes for arrays in files.values() for array in arrays.values())
+        total = sum(array.nbytes for _, arrays in files for array in arrays.values())
         if total > MAX_DEMONSTRATION_BYTES:
-            raise DemonstrationsError(", ".join(map(str, files)), "", f"demonstrations of at most "
+            raise DemonstrationsError(", ".join(str(path) for path, _ in files), "", f"demonstrations of at most "
                                       f"{MAX_DEMONSTRATION_BYTES // 2**30} GiB", f"{total / 2**30:,.1f} GiB in all")
-        rows = [arrays["actions"].shape[0] for arrays in files.values()]
+        rows = [arrays["actions"].shape[0] for _, arrays in files]
         joined = {name: np.empty((sum(rows), *array.shape[1:]), array.dtype)
                   for name, array in wanted.items() if name != "episodes"}
         episodes, start = 0, 0
-        for (path, arrays), n in zip(files.items(), rows, strict=True):
+        for (path, arrays), n in zip(files, rows, strict=True):
             part = slice(start, start + n)
             played = int(read_array_into(path, arrays["episodes"], np.empty((), arrays["episodes"].dtype),
                                          DemonstrationsError))
