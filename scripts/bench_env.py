@@ -12,11 +12,16 @@ counted unless ``--with-resets`` (then the reset after an episode's last step co
 that step: whole decisions, what training waits for). ``--threads`` sets the kernels'
 threads (:func:`emmi_gym.concurrency.threads.set_kernel_threads`; default one per core):
 ``--with-resets --threads 1`` gives the decisions/s of one env on one core, as each of a
-training run's env processes makes them. The median of ``--repeats`` runs is printed. The split times the simulator
-(physics and odometry), the laser, the RBPF update, its metrics (EMMI and the other
-certainty measures: once per step by default, see the env's ``update_records``), the
-expected-map products (coverage, accuracy, planning and candidates) and the observation;
-each part's time excludes the parts timed inside it.
+training run's env processes makes them. The median of ``--repeats`` runs is printed.
+
+The split times the simulator (physics and odometry), the laser, the RBPF update, its
+metrics (EMMI and the other certainty measures: once per step by default, see the env's
+``update_records``), the oracle map's insertions (which coverage is read on), the
+ground-truth scores (map labels, map accuracy, oracle accuracy, wall consistency, ATE),
+the planner's cost-distance maps (for the candidate targets and for replanning), the
+checks of the path ahead after each filter update, the rest of the expected-map products
+(coverage, candidates) and the observation; each part's time excludes the parts timed
+inside it.
 
 This machine's speed drifts by tens of percent from minute to minute, more than most
 changes gain: ``--against DIR`` (a ``git worktree`` of the code before a change) plays
@@ -39,8 +44,10 @@ import numpy as np
 
 import emmi_gym
 from emmi_gym.concurrency.threads import set_kernel_threads
-from emmi_gym.env import ENV_IDS, EmmiEnv
+from emmi_gym.env import ENV_IDS, EmmiEnv, emmi_env
 from emmi_gym.env.observation import OBSERVATION_TYPES
+from emmi_gym.navigation import executor
+from emmi_gym.scoring.oracle import OracleMap
 from emmi_gym.slam import RBPF
 from emmi_gym.world import Simulator
 
@@ -51,10 +58,11 @@ REPO = Path(__file__).resolve().parent.parent
 _OPEN: list = []  # the timed calls under way, innermost last
 
 
-def timed(cls, name: str, bucket: dict, key: str) -> None:
-    """Accumulate the wall time of every call of ``cls.name`` into ``bucket[key]``, less the time of the
-    timed calls made inside it (which go to their own keys)."""
-    original = getattr(cls, name)
+def timed(owner, name: str, bucket: dict, key: str) -> None:
+    """Accumulate the wall time of every call of ``owner.name`` (a class's method, or a function as the module
+    that calls it names it) into ``bucket[key]``, less the time of the timed calls made inside it (which go
+    to their own keys)."""
+    original = getattr(owner, name)
 
     def wrapper(*args, **kwargs):
         _OPEN.append(0.0)
@@ -68,7 +76,7 @@ def timed(cls, name: str, bucket: dict, key: str) -> None:
             if _OPEN:
                 _OPEN[-1] += spent
 
-    setattr(cls, name, wrapper)
+    setattr(owner, name, wrapper)
 
 
 SPENT: dict = defaultdict(float)
@@ -80,6 +88,11 @@ def time_the_parts() -> None:
     timed(Simulator, "scan", SPENT, "laser")
     timed(RBPF, "process", SPENT, "rbpf")
     timed(RBPF, "measure", SPENT, "rbpf metrics")
+    timed(OracleMap, "insert", SPENT, "oracle map")
+    for score in ("map_labels", "accuracy_of_labels", "oracle_scores_of_labels", "absolute_trajectory_error"):
+        timed(emmi_env, score, SPENT, "ground-truth scores")
+    timed(executor, "travel_costs", SPENT, "planning")
+    timed(executor, "path_obstructed", SPENT, "path checks")
     timed(EmmiEnv, "_refresh", SPENT, "map products")
     for observation_type in OBSERVATION_TYPES.values():
         timed(observation_type, "observe", SPENT, "observation")
@@ -93,6 +106,7 @@ def play(env_id: str, options: dict, with_resets: bool = False):
     core = env.unwrapped
     rng = np.random.default_rng(0)
     env.reset(seed=0)
+    SPENT.clear()  # the first reset is not timed, nor are its parts
     step = 0
     try:
         while True:
