@@ -162,3 +162,44 @@ def test_no_module_reaches_into_another_objects_private_attributes():
     reaches = {str(path.relative_to(ROOT)): found for path in sorted(ROOT.rglob("*.py"))
                if (found := private_reaches(path.read_text()))}
     assert reaches == {}
+
+
+def attributes_set_outside_init(source: str) -> dict[str, list[str]]:
+    """For each class of ``source``: the ``self.`` attributes its other methods assign that neither its
+    ``__init__`` nor the ``__init__`` of a base class of the same module assigns."""
+    classes = {node.name: node for node in ast.walk(ast.parse(source)) if isinstance(node, ast.ClassDef)}
+
+    def assigned(cls: ast.ClassDef) -> dict[str, set[str]]:
+        by_method = {}
+        for method in (f for f in cls.body if isinstance(f, ast.FunctionDef)):
+            targets = [t for n in ast.walk(method) for t in (n.targets if isinstance(n, ast.Assign) else
+                       [n.target] if isinstance(n, (ast.AugAssign, ast.AnnAssign)) else [])]
+            by_method[method.name] = {e.attr for t in targets for e in ast.walk(t) if isinstance(e, ast.Attribute)
+                                      and isinstance(e.value, ast.Name) and e.value.id == "self"}
+        return by_method
+
+    def declared(cls: ast.ClassDef) -> set[str]:
+        bases = [classes[b.id] for b in cls.bases if isinstance(b, ast.Name) and b.id in classes]
+        return assigned(cls).get("__init__", set()).union(*(declared(base) for base in bases))
+
+    found = {}
+    for name, cls in classes.items():
+        late = {a for method, names in assigned(cls).items() if method != "__init__" for a in names} - declared(cls)
+        if late:
+            found[name] = sorted(late)
+    return found
+
+
+def test_attributes_set_outside_init_are_found():
+    source = ("class A:\n    def __init__(self):\n        self.a = 1\n"
+              "    def reset(self):\n        self.a = self.b = 2\n"
+              "class B(A):\n    def go(self):\n        self.a += 1\n        self.c: int = 3\n")
+    assert attributes_set_outside_init(source) == {"A": ["b"], "B": ["c"]}
+
+
+def test_the_environment_classes_declare_every_attribute_in_init():
+    """What an environment, its episode, action and observation types hold can be read off their
+    ``__init__``: no attribute first appears in a method called later."""
+    late = {str(path.relative_to(ROOT)): found for path in sorted((ROOT / "env").glob("*.py"))
+            if (found := attributes_set_outside_init(path.read_text()))}
+    assert late == {}

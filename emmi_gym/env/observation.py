@@ -157,7 +157,8 @@ class MapPooling:
     """
 
     def __init__(self):
-        self._key = None
+        self._key = None  # the (grid, window, size) the index below was made for
+        self._cells = self._pixels = self._bounds = np.empty(0, dtype=np.int64)
 
     def _prepare(self, geometry: GridGeometry, window, size: int) -> None:
         x0, y0, mpp = window
