@@ -1,6 +1,7 @@
 """The reference pages stay in sync with the code: one page per registered id stating its registered
 keywords and its spaces as ``gym.make`` builds them, the options reference as the generator writes it
-now, and the site's navigation over every page."""
+now, and the site's navigation over every page; no page over 12 KiB; the examples of "Make your own"
+run; CONTRIBUTING.md names what exists."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import pytest
 import yaml
 
 import emmi_gym
+import emmi_gym.cli
 from emmi_gym.env.config import REWARD_SCALES, REWARDS
 from emmi_gym.env.registration import ENV_IDS
 
@@ -165,3 +167,98 @@ def test_the_info_page_states_every_key():
     text = (DOCS / "info.md").read_text()
     missing = sorted(key for key in keys if f"| `{key}` |" not in text)
     assert not missing, f"docs/info.md does not state the info keys {missing}"
+
+
+#: The largest a docs page may be, in bytes of its Markdown with the files it includes: a page is read
+#: as a reference, so a longer one is split by topic (as the benchmarks are, one page per topic).
+MAX_PAGE_BYTES = 12 * 1024
+#: A pymdownx.snippets line, which includes a file (relative to the repository root) into the page.
+SNIPPET = re.compile(r'^--8<-- "([^"]+)"$', re.M)
+
+
+def page_bytes(page: Path) -> int:
+    """The size of ``page`` as the site renders it: its own bytes plus those of the files it includes."""
+    text = page.read_text()
+    included = sum(len((ROOT / name).read_bytes()) for name in SNIPPET.findall(text))
+    return len(SNIPPET.sub("", text).encode()) + included
+
+
+def test_page_size_counts_included_files(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text('# Changes\n\n--8<-- "CHANGELOG.md"\n')
+    assert page_bytes(page) == len(b"# Changes\n\n\n") + len((ROOT / "CHANGELOG.md").read_bytes())
+
+
+def test_no_docs_page_exceeds_12_kib():
+    sizes = {str(p.relative_to(DOCS)): page_bytes(p) for p in DOCS.rglob("*.md")}
+    too_large = {name: size for name, size in sorted(sizes.items()) if size > MAX_PAGE_BYTES}
+    assert not too_large, (f"docs pages over {MAX_PAGE_BYTES} bytes: {too_large}; split them by topic "
+                           "(see docs/benchmarks/) or move figures to the benchmarks pages")
+
+
+#: The worked examples of docs/make_your_own.md, in the page's order.
+EXAMPLES = ("reward", "action", "observation", "world")
+
+
+def marked_block(text: str, opening: str, closing: str, language: str) -> str:
+    """The fenced ``language`` block between ``<!-- opening -->`` and ``<!-- closing -->``."""
+    found = re.search(rf"<!-- {re.escape(opening)} -->\n```{language}\n(.*?)```\n<!-- {re.escape(closing)} -->",
+                      text, re.S)
+    assert found, f"no {language} block marked <!-- {opening} --> ... <!-- {closing} -->"
+    return found.group(1)
+
+
+def example_code(name: str) -> str:
+    return marked_block((DOCS / "make_your_own.md").read_text(), f"example: {name}", "/example", "python")
+
+
+def test_the_marked_blocks_are_parsed_as_written():
+    text = "<!-- example: reward -->\n```python\nx = 1\n```\n<!-- /example -->\n"
+    assert marked_block(text, "example: reward", "/example", "python") == "x = 1\n"
+    with pytest.raises(AssertionError):
+        marked_block(text, "example: world", "/example", "python")
+    with pytest.raises(AssertionError):
+        marked_block(text, "example: reward", "/example", "bash")
+
+
+def test_make_your_own_has_its_four_examples():
+    text = (DOCS / "make_your_own.md").read_text()
+    assert tuple(re.findall(r"<!-- example: (\w+) -->", text)) == EXAMPLES
+
+
+@pytest.fixture
+def restore_registry():
+    """The Gymnasium registry as it was: an example that registers an id leaves nothing behind."""
+    before = set(gym.registry)
+    yield
+    for env_id in set(gym.registry) - before:
+        del gym.registry[env_id]
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_each_make_your_own_example_runs(name, tmp_path, monkeypatch, restore_registry):
+    code = example_code(name)
+    monkeypatch.chdir(tmp_path)  # the world example writes its world file here
+    exec(compile(code, f"docs/make_your_own.md ({name} example)", "exec"), {"__name__": f"make_your_own_{name}"})
+
+
+def test_contributing_sets_up_with_the_readme_test_command():
+    setup = marked_block((ROOT / "CONTRIBUTING.md").read_text(), "setup-command", "/setup-command", "bash")
+    test = marked_block((ROOT / "README.md").read_text(), "test-command", "/test-command", "bash")
+    assert setup == test, "CONTRIBUTING.md's set-up line differs from the README's test command"
+
+
+def test_contributing_names_files_commands_and_markers_that_exist(pytestconfig):
+    text = (ROOT / "CONTRIBUTING.md").read_text()
+    paths = set(re.findall(r"\b((?:scripts|tests|docs)/[\w./-]+\.(?:py|md))\b", text))
+    paths |= {f"scripts/{name}" for name in re.findall(r"`(\w+\.py)`", text)}
+    paths |= set(re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", text))
+    missing = sorted(p for p in paths if not (ROOT / p).exists())
+    assert not missing, f"CONTRIBUTING.md names files that do not exist: {missing}"
+    parser = emmi_gym.cli.build_parser()
+    for command in sorted(set(re.findall(r"`emmi-gym (\w+)", text))):
+        with pytest.raises(SystemExit) as done:
+            parser.parse_args([command, "--help"])
+        assert done.value.code == 0, f"CONTRIBUTING.md names `emmi-gym {command}`, which is not a subcommand"
+    markers = [line.split(":")[0] for line in pytestconfig.getini("markers")]
+    assert "slow" in markers and "@pytest.mark.slow" in text, "CONTRIBUTING.md's slow marker is not pytest's"
