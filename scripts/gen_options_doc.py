@@ -21,7 +21,6 @@ from emmi_gym.inputs import validation as v
 from emmi_gym.slam.config import PRESETS as RBPF_PRESETS
 from emmi_gym.slam.config import RBPFConfig
 from emmi_gym.world import GeneratorConfig, LaserConfig, OdometryNoise
-from emmi_gym.world.loop_worlds import LoopWorldConfig
 from emmi_gym.world.presets import LASER_PRESETS, ODOMETRY_PRESETS
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "options.md"
@@ -35,7 +34,6 @@ SECTIONS = (
     (OdometryNoise, "`odometry_noise=\"preset\"` or `{\"preset\": ..., field: value}`: the odometry's noise, "
                     "per 0.1 s control period."),
     (GeneratorConfig, "`generator={...}` with `world=None`: the world generated at every reset."),
-    (LoopWorldConfig, "`generator={...}` with `world=\"loop_order\"`: the loop-order world generated at every reset."),
 )
 
 

@@ -8,6 +8,7 @@ what the commands write and that the options reach the env, not what the experim
 import csv
 import hashlib
 import math
+from dataclasses import fields
 from pathlib import Path
 
 import gymnasium as gym
@@ -185,3 +186,11 @@ def test_bad_ab_options_are_clear_errors(argv, message, capsys, tmp_path):
         main(argv + ["--out", str(tmp_path / "out")])
     assert exit_.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_the_world_page_states_every_family_option():
+    text = (Path(__file__).resolve().parent.parent / "docs" / "world.md").read_text()
+    block = text.split("<!-- loop-world-options")[1].split("<!-- /loop-world-options -->")[0]
+    stated = [[cell.strip().strip("`") for cell in line.strip().strip("|").split(" | ")]
+              for line in block.splitlines()[3:] if line.startswith("|")]
+    assert stated == [[f.name, str(f.default), f.metadata["help"]] for f in fields(LoopWorldConfig)]

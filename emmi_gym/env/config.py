@@ -80,11 +80,9 @@ class EnvConfig:
 
     world: str | None = option(
         "loop_corridor", Maybe(Text(), "a generated world per reset"),
-        help="a built-in name, world or map_server file, floor-plan image, map set or 'loop_order'; None: generated "
-             "per reset")
+        help="a built-in name, world or map_server file, floor-plan image, map set or 'loop_order'; None: generated")
     generator: dict = option({}, Mapping(),
-                             help="GeneratorConfig fields of the generated worlds (with world=None), LoopWorldConfig "
-                                  "fields with world='loop_order'")
+                             help="GeneratorConfig fields (world=None) or LoopWorldConfig ones (world='loop_order')")
     pixel_size: float = option(DEFAULT_PIXEL_SIZE, PIXEL_SIZE,
                                help="metres per pixel of a floor-plan image")
     start_at: str = option(

@@ -58,22 +58,21 @@ class LoopWorldConfig:
     """Parameters of :func:`generate_loop_world` (``gym.make(..., world="loop_order", generator={...})``)."""
 
     loop_width: float = option(24.0, Real(8.0, MAX_SIDE, unit="m"),
-                               help="east-west side of the old loop (centre lines of its outer walls)")
+                               help="east-west side of the loop")
     loop_height: float = option(16.0, Real(14.0, MAX_SIDE, unit="m"),
-                                help="north-south side of the old loop")
+                                help="north-south side of the loop")
     new_area_length: float = option(12.0, Real(4.0, MAX_SIDE, unit="m"),
-                                    help="how far west the new area reaches beyond the loop")
+                                    help="how far west of the loop the new area reaches")
     new_area_loop: bool = option(True, Boolean(),
-                                 help="the new area rejoins the loop through a second opening (a loop of its own); "
-                                      "False: it ends in a dead end")
+                                 help="the new area rejoins the loop (a loop of its own); False: a dead end")
     loop_pillar_spacing: float = option(0.0, Real(0.0, MAX_SIDE, unit="m"),
-                                        help="pillars along the old loop's outer wall this far apart (0: none)")
+                                        help="pillars this far apart on the loop's outer wall; 0: none")
     new_area_pillar_spacing: float = option(2.0, Real(0.0, MAX_SIDE, unit="m"),
-                                            help="pillars along the new area's outer wall this far apart (0: none)")
+                                            help="pillars this far apart on the new area's outer wall; 0: none")
     corridor_width: float = option(2.0, Real(1.2, 4.0, unit="m"),
-                                   help="width of every corridor")
+                                   help="width of the corridors")
     size_jitter: float = option(0.0, Real(0.0, 0.3),
-                                help="each world's sizes are drawn uniformly within this share of their values")
+                                help="sizes drawn uniformly within this share of their values")
     wall_thickness: float = option(0.25, Real(0.05, 1.0, unit="m"),
                                    help="thickness of the walls")
 
