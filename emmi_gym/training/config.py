@@ -404,7 +404,8 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
         env_id=env_id, env_kwargs=dict(kwargs), algorithm=algorithm, policy=policy, hyperparameters=hyper,
         discount_unit=discount_unit, n_envs=field("n_envs", Integer(1, MAX_ENVS, "each env is a process with its "
                                                                     "own filter, 100-300 MB"), default_n_envs()),
-        vec_env=_vec_env(source, algorithm, data.get("vec_env")), total_timesteps=field("total_timesteps", _STEPS, 20_000),
+        vec_env=_vec_env(source, algorithm, data.get("vec_env")),
+        total_timesteps=field("total_timesteps", _STEPS, 20_000),
         seed=field("seed", Integer(0, 2**32 - 1), 0), eval=eval_schedule,
         checkpoint_freq=field("checkpoint_freq", _STEPS, 5000), source=source)
     _check_env(source, config)
