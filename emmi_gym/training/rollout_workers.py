@@ -263,11 +263,11 @@ class _FragmentCollection:
         if not isinstance(env, RolloutWorkers):
             raise TypeError(f"{type(self).__name__} collects from RolloutWorkers, not {type(env).__name__}")
         assert self._last_obs is not None, "No previous observation was provided"
-        masking = use_masking and _masked(self)
+        masking = use_masking and is_masked(self)
         self.policy.set_training_mode(False)
         rollout_buffer.reset()
         callback.on_rollout_start()
-        fragment = env.play(self.policy, n_rollout_steps, Acting(masking, self.use_sde, self.sde_sample_freq))
+        fragment = env.play(self.policy, n_rollout_steps, acting_of(self, masking))
         masks = {}
         for n_steps in range(n_rollout_steps):
             new_obs, rewards, dones, infos = (_step_of(fragment.new_obs, n_steps), fragment.rewards[n_steps].copy(),
@@ -301,10 +301,16 @@ class _FragmentCollection:
         return True
 
 
-def _masked(algorithm) -> bool:
+def is_masked(model) -> bool:
+    """Whether ``model`` acts with action masks (MaskablePPO)."""
     from sb3_contrib import MaskablePPO
 
-    return isinstance(algorithm, MaskablePPO)
+    return isinstance(model, MaskablePPO)
+
+
+def acting_of(model, masking: bool) -> Acting:
+    """How a worker acts for ``model`` (an on-policy algorithm), with masks or not."""
+    return Acting(masking, model.use_sde, model.sde_sample_freq)
 
 
 @lru_cache(maxsize=None)
