@@ -32,8 +32,10 @@ time goes, and the efficiency to expect on more cores.
    ``E[max]`` is estimated by drawing the ``t`` (resampling the measured times, 2000 draws). A
    decision's time is heavy-tailed (a waypoint drive is 10 ms to a second): the maximum of ``W``
    single decisions grows quickly with ``W``, the maximum of ``W`` sums of ``n`` decisions barely.
-   The model counts the learner's update at this machine's speed; a learner with more cores or a
-   GPU takes less.
+   The learner's update grows with ``W`` (its batch is ``W n`` decisions) while a fragment's time
+   does not, so ``u W`` must stay well under ``m``: each model is printed with ``u`` as measured
+   on this machine (the update on its cores) and with ``u = 0`` (a learner whose update does not
+   hold up the workers, such as one on a GPU).
 """
 
 from __future__ import annotations
@@ -165,10 +167,12 @@ def main() -> None:
     print(f"  the learner's share of the wall time: {100 * learner / wall:.0f}% "
           f"({1000 * update:.1f} ms per decision less the evaluation)")
     n_steps = config.hyperparameters.get("n_steps", 2048)
-    print(f"  predicted efficiency (n_steps {n_steps}, {1000 * update:.1f} ms of learner per decision):")
+    print(f"  predicted efficiency (n_steps {n_steps}), with the learner as measured ({1000 * update:.1f} ms per "
+          f"decision) / with a learner that does not hold up the workers (a GPU's update):")
     for count in sorted({workers, *PREDICTED_WORKERS}):
-        predicted = predicted_efficiency(single, count, n_steps, update)
-        print(f"    {count:3d} workers: " + ", ".join(f"{name} {100 * value:.0f}%" for name, value in predicted.items()))
+        measured, free = (predicted_efficiency(single, count, n_steps, u) for u in (update, 0.0))
+        print(f"    {count:3d} workers: " + ", ".join(f"{name} {100 * measured[name]:.0f}% / {100 * free[name]:.0f}%"
+                                                 for name in measured))
 
 
 if __name__ == "__main__":
