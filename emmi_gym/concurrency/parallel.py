@@ -84,6 +84,7 @@ class ProcessActor:
         self.process.start()
         child.close()  # only the process holds its end: its exit ends the pipe, and recv raises EOFError
         self._waiting = True  # for the object to be built
+        self._closing = False
 
     def submit(self, method: str, *args) -> None:
         """Start ``method(*args)`` in the process (after the previous call's result was read)."""
@@ -107,12 +108,18 @@ class ProcessActor:
             raise ActorFailed(f"{self.name}: {value}")
         return value
 
+    def ask_to_close(self) -> None:
+        """Ask the process to end once the call under way, if any, is done."""
+        if not self._closing:
+            self._closing = True
+            try:
+                self._connection.send(None)
+            except (OSError, ValueError):
+                pass
+
     def close(self, timeout: float) -> None:
         """Ask the process to end, wait up to ``timeout`` seconds (it may be amid a call), then terminate it."""
-        try:
-            self._connection.send(None)
-        except (OSError, ValueError):
-            pass
+        self.ask_to_close()
         self.process.join(timeout)
         if self.process.is_alive():
             self.process.terminate()

@@ -46,6 +46,9 @@ class RayActor:
             cause = getattr(error, "cause", None) or error
             raise ActorFailed(f"{self.name}: {type(cause).__name__}: {str(cause).strip().splitlines()[-1]}") from None
 
+    def ask_to_close(self) -> None:
+        """Nothing to ask: :meth:`close` ends the actor."""
+
     def close(self, timeout: float) -> None:
         """End the actor, after the call under way if it ends within ``timeout`` seconds."""
         if self._reply is not None:

@@ -28,6 +28,7 @@ the same seeds give the same rollouts with local processes and with Ray actors, 
 from __future__ import annotations
 
 import copy
+import time
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -39,7 +40,7 @@ from stable_baselines3.common.utils import obs_as_tensor
 from stable_baselines3.common.vec_env import VecEnv
 
 from ..concurrency.parallel import ProcessActor, one_kernel_thread
-from ..concurrency.ray_cluster import connect_ray
+from ..concurrency.ray_cluster import RayActor, connect_ray
 
 #: Seconds :meth:`RolloutWorkers.close` lets a worker finish the fragment under way before it is ended.
 CLOSE_TIMEOUT = 5.0
@@ -171,7 +172,7 @@ class RolloutWorkers(VecEnv):
         try:
             for rank in range(n_envs):
                 args = (f"rollout worker {rank}", RolloutWorker, env_fn, range(rank, rank + 1), seed)
-                self.workers.append(_ray_actor(self._ray, *args) if on_ray else ProcessActor(*args))
+                self.workers.append(RayActor(self._ray, *args) if on_ray else ProcessActor(*args))
             self.workers[0].submit("spaces")
             observation_space, action_space = self.workers[0].result()
         except BaseException:
@@ -237,21 +238,18 @@ class RolloutWorkers(VecEnv):
         raise TypeError("rollout workers play whole fragments (RolloutWorkers.play)")
 
     def close(self) -> None:
-        """End every worker (each may finish the fragment under way within :data:`CLOSE_TIMEOUT` s), and the
-        Ray instance if this started it. Safe after an interrupt left a fragment half played."""
+        """End every worker (they may finish the fragments under way within :data:`CLOSE_TIMEOUT` s in all), and
+        the Ray instance if this started it. Safe after an interrupt left a fragment half played."""
         if self.closed:
             return
         for worker in self.workers:
-            worker.close(CLOSE_TIMEOUT)
+            worker.ask_to_close()
+        deadline = time.monotonic() + CLOSE_TIMEOUT
+        for worker in self.workers:
+            worker.close(max(0.0, deadline - time.monotonic()))
         if self._started_ray:
             self._ray.shutdown()
         self.closed = True
-
-
-def _ray_actor(ray, name, factory, *args):
-    from ..concurrency.ray_cluster import RayActor
-
-    return RayActor(ray, name, factory, *args)
 
 
 class _FragmentCollection:
