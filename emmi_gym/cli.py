@@ -383,8 +383,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "dummy) on the cluster at ADDRESS ('local': a Ray instance on this machine; no ADDRESS: "
                          "RAY_ADDRESS, else local)")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
-    _torch_threads_option(tr, "1 beside env subprocesses, which need the cores; one per core with rollout "
-                              "workers or when the envs run in this process")
+    _torch_threads_option(tr, "1 beside rollout workers and env subprocesses; one per core when the envs run "
+                              "in this process")
     tr.set_defaults(func=_cmd_train)
 
     cl = sub.add_parser("clone", help="behaviour cloning: fit a configuration's model to a scripted policy's "

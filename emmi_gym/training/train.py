@@ -57,13 +57,12 @@ DEFAULT_TORCH_THREADS = 1
 
 
 def training_torch_threads(config: AgentConfig) -> int:
-    """torch threads for training ``config``: :data:`DEFAULT_TORCH_THREADS` beside env subprocesses, one
-    per core when the envs run in this process or in rollout workers (the learner and the envs then take
-    turns, never competing for the cores)."""
-    cores = max(1, os.cpu_count() or 1)
-    if _rollout_workers(config.n_envs, config.vec_env):
-        return cores  # the workers wait while the learner updates, and it waits while they play
-    return DEFAULT_TORCH_THREADS if _subprocesses(config.n_envs, config.vec_env) else cores
+    """torch threads for training ``config``: :data:`DEFAULT_TORCH_THREADS` beside env subprocesses and
+    rollout workers, one per core when the envs run in this process (the learner and the envs then take
+    turns, never competing for the cores). Rollout workers wait while the learner updates, but an update
+    of the waypoint agents on two threads took 2-10 times as long as on one (256 decisions of
+    ``ppo_plans_emmi.yaml``, 2-core VM)."""
+    return DEFAULT_TORCH_THREADS if _subprocesses(config.n_envs, config.vec_env) else max(1, os.cpu_count() or 1)
 
 
 def set_torch_threads(threads: int | None = None) -> int:
