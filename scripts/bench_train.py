@@ -6,8 +6,9 @@ time goes, and the efficiency to expect on more cores.
 
 1. **One worker alone**: a rollout worker in a process of its own (kernels and torch on one thread,
    as in training) plays ``--single`` decisions of the configuration's env with a fresh model's
-   policy, one at a time, resets included; each decision's wall time is kept. Their mean gives the
-   single-thread decisions/s.
+   policy (the decisions the first worker plays first in training), one at a time, resets
+   included; each decision's wall time is kept. It runs before and after the training (this
+   machine's speed drifts by tens of percent): the mean of both gives the single-thread decisions/s.
 2. **Training**, exactly as ``emmi-gym train`` does (same envs, vectorisation, threads, callbacks),
    ``--timesteps`` decisions into ``--out`` (a temporary folder by default). It times the waits for
    the envs (the rollout workers' fragments, or a synchronous vector env's steps and resets), the
@@ -136,8 +137,7 @@ def main() -> None:
     overrides = {"total_timesteps": args.timesteps, "n_envs": args.n_envs, "vec_env": args.vec_env}
     config = replace(config, **{k: v for k, v in overrides.items() if v is not None})
 
-    single = single_thread_decision_seconds(config, args.single)
-    single_rate = 1.0 / single.mean()
+    before = single_thread_decision_seconds(config, args.single)
 
     set_torch_threads(training_torch_threads(config))  # as emmi-gym train: the same network as it trains
     cls = algorithm_class(config.algorithm)
@@ -149,12 +149,16 @@ def main() -> None:
           when=lambda cb: cb.eval_freq > 0 and cb.n_calls % cb.eval_freq == 0)  # as the callback decides
     with tempfile.TemporaryDirectory() as scratch:
         result = train(config, Path(args.out or scratch) / "run", progress=False)
+    after = single_thread_decision_seconds(config, args.single)  # this machine's speed drifts: before and after
+    single = np.concatenate([before, after])
+    single_rate = 1.0 / single.mean()
     wall, decisions, workers = result.wall_seconds, result.timesteps, config.n_envs
     waiting = SPENT["waiting for the envs"]
     rate = decisions / wall
     print(f"{config.algorithm} on {config.env_id}, {workers} env(s) ({config.vec_env}), {decisions} decisions "
           f"in {wall:.1f} s: {rate:.2f} decisions/s")
-    print(f"  one worker alone: {single_rate:.2f} decisions/s ({len(single)} decisions; per decision median "
+    print(f"  one worker alone: {single_rate:.2f} decisions/s ({1 / before.mean():.2f} before training, "
+          f"{1 / after.mean():.2f} after; per decision median "
           f"{np.median(single):.3f} s, p90 {np.quantile(single, 0.9):.3f} s, max {single.max():.3f} s)")
     print(f"  efficiency: {rate:.2f} / ({workers} x {single_rate:.2f}) = {100 * rate / (workers * single_rate):.0f}%")
     parts = {"waiting for the envs": waiting, "evaluation": SPENT["evaluation"],
