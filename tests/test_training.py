@@ -326,7 +326,7 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
     ({"hyperparameters": {"normalize_advantage": "yes"}}, "hyperparameters.normalize_advantage", "true or false"),
     ({"n_envs": 0}, "n_envs", "an integer in [1, 64]"),
     ({"n_envs": 100000}, "n_envs", "an integer in [1, 64]"),
-    ({"vec_env": "slurm"}, "vec_env", "one of ['subproc', 'dummy', 'ray']"),
+    ({"vec_env": "slurm"}, "vec_env", "one of ['workers', 'ray_workers', 'subproc', 'dummy', 'ray']"),
     ({"eval": {"freq": -1}}, "eval.freq", "an integer in [0, "),
     ({"eval": {"every": 3}}, "eval.every", "one of the known options ['freq', 'episodes', 'seed', 'env_kwargs']"),
     ({"eval": {"env_kwargs": {"rewad": "emmi"}}}, "eval.env_kwargs.rewad", "one of the known options"),
