@@ -2,13 +2,14 @@
 time goes, and the efficiency to expect on more cores.
 
     python scripts/bench_train.py [--config agents/ppo_plans_emmi.yaml] [--timesteps N] [--n-envs W]
-                                  [--vec-env workers|subproc|dummy] [--single 128] [--out DIR]
+                                  [--vec-env workers|subproc|dummy] [--single N] [--out DIR]
 
 1. **One worker alone**: a rollout worker in a process of its own (kernels and torch on one thread,
-   as in training) plays ``--single`` decisions of the configuration's env with a fresh model's
-   policy (the decisions the first worker plays first in training), one at a time, resets
-   included; each decision's wall time is kept. It runs before and after the training (this
-   machine's speed drifts by tens of percent): the mean of both gives the single-thread decisions/s.
+   as in training) plays the first ``--single`` decisions (default ``n_steps``) of each env of
+   the run with the model's initial weights, one env after another, one decision at a time, resets
+   included; each decision's wall time is kept. These are the very decisions the workers play
+   first in training (the same seeds, weights and sampling generators: with ``--timesteps`` =
+   ``n_envs x n_steps``, all of them), so the single-thread decisions/s is that of the same work.
 2. **Training**, exactly as ``emmi-gym train`` does (same envs, vectorisation, threads, callbacks),
    ``--timesteps`` decisions into ``--out`` (a temporary folder by default). It times the waits for
    the envs (the rollout workers' fragments, or a synchronous vector env's steps and resets), the
@@ -89,24 +90,27 @@ def timed(cls, name: str, key: str, when=lambda self: True, marks: list | None =
 
 
 def single_thread_decision_seconds(config, decisions: int) -> np.ndarray:
-    """The wall time of each of ``decisions`` decisions of one rollout worker playing alone (see the docstring)."""
-    worker = ProcessActor("single-thread worker", RolloutWorker, partial(make_env, config.env_id, config.env_kwargs),
-                          range(0, 1), config.seed)
-    try:
-        worker.submit("spaces")
-        model = model_of(config, DummyVecEnv([partial(make_env, config.env_id, config.env_kwargs)]))
-        worker.submit("set_policy", copy.deepcopy(model.policy).to("cpu"), acting_of(model, is_masked(model)))
-        worker.submit("reset")
-        worker.result()
-        weights = model.policy.state_dict()
-
-        def decide():
-            worker.submit("play", weights, 1)
+    """The wall time of each decision of one rollout worker playing alone (see the docstring): the first
+    ``decisions`` of every env of the run, one env after another."""
+    env_fn = partial(make_env, config.env_id, config.env_kwargs)
+    model = model_of(config, DummyVecEnv([env_fn]))  # the initial weights of the run's model (same seed)
+    weights, acting = model.policy.state_dict(), acting_of(model, is_masked(model))
+    times = []
+    for rank in range(config.n_envs):
+        worker = ProcessActor(f"worker {rank} alone", RolloutWorker, env_fn, range(rank, rank + 1), config.seed)
+        try:
+            worker.submit("set_policy", copy.deepcopy(model.policy).to("cpu"), acting)
+            worker.submit("reset")
             worker.result()
 
-        return call_seconds(decide, decisions)
-    finally:
-        worker.close(5.0)
+            def decide():
+                worker.submit("play", weights, 1)
+                worker.result()
+
+            times.append(call_seconds(decide, decisions, warmup=0))
+        finally:
+            worker.close(5.0)
+    return np.concatenate(times)
 
 
 def expected_max(times: np.ndarray, workers: int, steps: int, rng, draws: int = 2000) -> float:
@@ -130,14 +134,17 @@ def main() -> None:
     parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
     parser.add_argument("--vec-env", default=None, help="override vec_env")
-    parser.add_argument("--single", type=int, default=128, help="decisions of the worker playing alone")
+    parser.add_argument("--single", type=int, default=None,
+                        help="decisions per env of the worker playing alone (default n_steps: the first fragments)")
     parser.add_argument("--out", default=None, help="run folder (default: a temporary one, removed after)")
     args = parser.parse_args()
     config = load_agent_config(args.config)
     overrides = {"total_timesteps": args.timesteps, "n_envs": args.n_envs, "vec_env": args.vec_env}
     config = replace(config, **{k: v for k, v in overrides.items() if v is not None})
 
-    before = single_thread_decision_seconds(config, args.single)
+    n_steps = config.hyperparameters.get("n_steps", 2048)
+    single = single_thread_decision_seconds(config, args.single or n_steps)
+    single_rate = 1.0 / single.mean()
 
     set_torch_threads(training_torch_threads(config))  # as emmi-gym train: the same network as it trains
     cls = algorithm_class(config.algorithm)
@@ -149,16 +156,12 @@ def main() -> None:
           when=lambda cb: cb.eval_freq > 0 and cb.n_calls % cb.eval_freq == 0)  # as the callback decides
     with tempfile.TemporaryDirectory() as scratch:
         result = train(config, Path(args.out or scratch) / "run", progress=False)
-    after = single_thread_decision_seconds(config, args.single)  # this machine's speed drifts: before and after
-    single = np.concatenate([before, after])
-    single_rate = 1.0 / single.mean()
     wall, decisions, workers = result.wall_seconds, result.timesteps, config.n_envs
     waiting = SPENT["waiting for the envs"]
     rate = decisions / wall
     print(f"{config.algorithm} on {config.env_id}, {workers} env(s) ({config.vec_env}), {decisions} decisions "
           f"in {wall:.1f} s: {rate:.2f} decisions/s")
-    print(f"  one worker alone: {single_rate:.2f} decisions/s ({1 / before.mean():.2f} before training, "
-          f"{1 / after.mean():.2f} after; per decision median "
+    print(f"  one worker alone: {single_rate:.2f} decisions/s ({len(single)} decisions; per decision median "
           f"{np.median(single):.3f} s, p90 {np.quantile(single, 0.9):.3f} s, max {single.max():.3f} s)")
     print(f"  efficiency: {rate:.2f} / ({workers} x {single_rate:.2f}) = {100 * rate / (workers * single_rate):.0f}%")
     parts = {"waiting for the envs": waiting, "evaluation": SPENT["evaluation"],
@@ -170,7 +173,6 @@ def main() -> None:
     update = (learner - SPENT["evaluation"]) / decisions  # the evaluation is a schedule's choice (eval.freq 0)
     print(f"  the learner's share of the wall time: {100 * learner / wall:.0f}% "
           f"({1000 * update:.1f} ms per decision less the evaluation)")
-    n_steps = config.hyperparameters.get("n_steps", 2048)
     print(f"  predicted efficiency (n_steps {n_steps}), with the learner as measured ({1000 * update:.1f} ms per "
           f"decision) / with a learner that does not hold up the workers (a GPU's update):")
     for count in sorted({workers, *PREDICTED_WORKERS}):
