@@ -6,43 +6,13 @@ import argparse
 import sys
 from pathlib import Path
 
+from .inputs import arguments
+
 DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMMI reward: run the paper's A/B "
                "experiment, train and evaluate agents, benchmark rewards, record and replay CARMEN logs.")
 
 
-def _integer(lo: int = 0, hi: int | None = None):
-    """An argparse type: a whole number in [lo, hi] (argparse names the option in its error)."""
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or value < lo or (hi is not None and value > hi):
-            bounds = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
-            raise argparse.ArgumentTypeError(f"expected an integer {bounds}, got {text!r}")
-        return value
-    return parse
-
-
-def _number(lo: float = 0.0, hi: float | None = None, unit: str = ""):
-    """An argparse type: a finite number above ``lo`` and at most ``hi``, in ``unit``."""
-    def parse(text: str) -> float:
-        import math
-
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and value > lo and (hi is None or value <= hi)):
-            bounds = f"in ({lo:g}, {hi:g}]" if hi is not None else f"above {lo:g}"
-            raise argparse.ArgumentTypeError(f"expected a finite number {bounds}{f' ({unit})' if unit else ''}, "
-                                             f"got {text!r}")
-        return value
-    return parse
-
-
-#: Seeds of numpy's generators, as the configurations bound them.
-_SEED = _integer(0, 2**32 - 1)
+_integer, _number, _SEED, _EPISODES = arguments.integer, arguments.number, arguments.SEED, arguments.EPISODES
 
 
 def _cmd_metrics(args: argparse.Namespace) -> int:
@@ -220,7 +190,7 @@ def _cmd_clone(args: argparse.Namespace) -> int:
     config = load_agent_config(args.config)
     check_cloneable(config)  # before any episode is played
     if args.demos:
-        demonstrations = Demonstrations.joined([Demonstrations.load(path) for path in args.demos])
+        demonstrations = Demonstrations.load(*args.demos)  # checked, then read into one set of arrays
     else:
         demonstrations = collect_demonstrations(config, args.policy, args.episodes, args.seed, workers=args.workers,
                                                 progress=not args.quiet)
@@ -391,7 +361,7 @@ def build_parser() -> argparse.ArgumentParser:
                                       "decisions, a warm start for 'train --init-from'")
     cl.add_argument("config", help="agent configuration (.yaml) of a waypoint env, e.g. agents/ppo_plans_emmi.yaml")
     cl.add_argument("--policy", default="active_loop_closing", help="the scripted policy (default active_loop_closing)")
-    cl.add_argument("--episodes", type=_integer(1), default=64, help="demonstration episodes in the training env")
+    cl.add_argument("--episodes", type=_EPISODES, default=64, help="demonstration episodes in the training env")
     cl.add_argument("--seed", type=_SEED, default=300000, help="first demonstration episode's seed")
     cl.add_argument("--demos", nargs="+", default=None, metavar="NPZ",
                     help="demonstrations.npz files to fit instead of playing episodes")
@@ -406,7 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("model", nargs="?", default=None,
                     help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
     ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
-    ev.add_argument("--episodes", type=_integer(1), default=10)
+    ev.add_argument("--episodes", type=_EPISODES, default=10)
     ev.add_argument("--seed", type=_SEED, default=200_000, help="first episode seed (default 200000: held out)")
     ev.add_argument("--world", default=None,
                     help="a world, map set, folder or glob to play on (a set's first maps, one episode each; "
@@ -432,7 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--seeds", type=int, default=3, help="training seeds per reward variant")
     bench.add_argument("--timesteps", type=int, default=None,
                        help="training steps per agent (default: the configuration's total_timesteps)")
-    bench.add_argument("--episodes", type=int, default=10, help="held-out evaluation episodes per agent")
+    bench.add_argument("--episodes", type=_EPISODES, default=10, help="held-out evaluation episodes per agent")
     bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
     bench.add_argument("--init-from", default=None, metavar="MODEL",
                        help="every agent starts from this model's weights (as 'train --init-from'), e.g. a "

@@ -2,16 +2,26 @@
 
     python scripts/bench_env.py [--decisions 60] [--velocity-steps 10000] [--repeats 3] [--ids ExploreVelocity-v0 ...]
                                 [--options '{"slam": {"linear_update": 1.0}}'] [--against DIR]
+                                [--with-resets] [--threads 1]
 
 Single process. For each id: reset (seed 0), then take a fixed number of env steps
 (random valid waypoint actions; random velocities; drawn from seed 0, so every run, and
 the code before a change that is only speed, plays the same episodes), timing the
 calls of ``step()``; resets (and LoopCorridor's drive to the decision point) are not
-counted. The median of ``--repeats`` runs is printed. The split times the simulator
-(physics and odometry), the laser, the RBPF update, its metrics (EMMI and the other
-certainty measures: once per step by default, see the env's ``update_records``), the
-expected-map products (coverage, accuracy, planning and candidates) and the observation;
-each part's time excludes the parts timed inside it.
+counted unless ``--with-resets`` (then the reset after an episode's last step counts with
+that step: whole decisions, what training waits for). ``--threads`` sets the kernels'
+threads (:func:`emmi_gym.concurrency.threads.set_kernel_threads`; default one per core):
+``--with-resets --threads 1`` gives the decisions/s of one env on one core, as each of a
+training run's env processes makes them. The median of ``--repeats`` runs is printed.
+
+The split times the simulator (physics and odometry), the laser, the RBPF update, its
+metrics (EMMI and the other certainty measures: once per step by default, see the env's
+``update_records``), the oracle map's insertions (which coverage is read on), the
+ground-truth scores (map labels, map accuracy, oracle accuracy, wall consistency, ATE),
+the planner's cost-distance maps (for the candidate targets and for replanning), the
+checks of the path ahead after each filter update, the rest of the expected-map products
+(coverage, candidates) and the observation; each part's time excludes the parts timed
+inside it.
 
 This machine's speed drifts by tens of percent from minute to minute, more than most
 changes gain: ``--against DIR`` (a ``git worktree`` of the code before a change) plays
@@ -33,7 +43,11 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym
-from emmi_gym.env import ENV_IDS, EmmiEnv
+from emmi_gym.concurrency.threads import set_kernel_threads
+from emmi_gym.env import ENV_IDS, EmmiEnv, emmi_env
+from emmi_gym.env.observation import OBSERVATION_TYPES
+from emmi_gym.navigation import executor
+from emmi_gym.scoring.oracle import OracleMap
 from emmi_gym.slam import RBPF
 from emmi_gym.world import Simulator
 
@@ -44,10 +58,11 @@ REPO = Path(__file__).resolve().parent.parent
 _OPEN: list = []  # the timed calls under way, innermost last
 
 
-def timed(cls, name: str, bucket: dict, key: str) -> None:
-    """Accumulate the wall time of every call of ``cls.name`` into ``bucket[key]``, less the time of the
-    timed calls made inside it (which go to their own keys)."""
-    original = getattr(cls, name)
+def timed(owner, name: str, bucket: dict, key: str) -> None:
+    """Accumulate the wall time of every call of ``owner.name`` (a class's method, or a function as the module
+    that calls it names it) into ``bucket[key]``, less the time of the timed calls made inside it (which go
+    to their own keys)."""
+    original = getattr(owner, name)
 
     def wrapper(*args, **kwargs):
         _OPEN.append(0.0)
@@ -61,26 +76,37 @@ def timed(cls, name: str, bucket: dict, key: str) -> None:
             if _OPEN:
                 _OPEN[-1] += spent
 
-    setattr(cls, name, wrapper)
+    setattr(owner, name, wrapper)
 
 
 SPENT: dict = defaultdict(float)
-timed(Simulator, "step", SPENT, "physics")
-timed(Simulator, "scan", SPENT, "laser")
-timed(RBPF, "process", SPENT, "rbpf")
-timed(RBPF, "_measure", SPENT, "rbpf metrics")
-timed(EmmiEnv, "_refresh", SPENT, "map products")
-timed(EmmiEnv, "_observation", SPENT, "observation")
 
 
-def play(env_id: str, options: dict):
+def time_the_parts() -> None:
+    """Time the parts of a step into :data:`SPENT` (not in the ``--against`` workers, which time whole steps)."""
+    timed(Simulator, "step", SPENT, "physics")
+    timed(Simulator, "scan", SPENT, "laser")
+    timed(RBPF, "process", SPENT, "rbpf")
+    timed(RBPF, "measure", SPENT, "rbpf metrics")
+    timed(OracleMap, "insert", SPENT, "oracle map")
+    for score in ("map_labels", "accuracy_of_labels", "oracle_scores_of_labels", "absolute_trajectory_error"):
+        timed(emmi_env, score, SPENT, "ground-truth scores")
+    timed(executor, "travel_costs", SPENT, "planning")
+    timed(executor, "path_obstructed", SPENT, "path checks")
+    timed(EmmiEnv, "_refresh", SPENT, "map products")
+    for observation_type in OBSERVATION_TYPES.values():
+        timed(observation_type, "observe", SPENT, "observation")
+
+
+def play(env_id: str, options: dict, with_resets: bool = False):
     """Step the fixed episodes of ``env_id`` (made with ``options``) for ever, yielding after each env step
-    (wall seconds inside ``step()``, simulator steps, filter updates); resets are not timed, nor are their
-    parts."""
+    (wall seconds inside ``step()``, and with ``with_resets`` inside the reset that follows an episode's
+    last step; simulator steps; filter updates); resets not counted are not timed, nor are their parts."""
     env = gym.make(env_id, **options)
     core = env.unwrapped
     rng = np.random.default_rng(0)
     env.reset(seed=0)
+    SPENT.clear()  # the first reset is not timed, nor are its parts
     step = 0
     try:
         while True:
@@ -96,27 +122,31 @@ def play(env_id: str, options: dict):
             updates = core.slam.step - before
             if terminated or truncated:
                 saved = dict(SPENT)
+                t0 = time.perf_counter()
                 env.reset(seed=step)
-                SPENT.clear()
-                SPENT.update(saved)
+                if with_resets:
+                    wall += time.perf_counter() - t0
+                else:
+                    SPENT.clear()
+                    SPENT.update(saved)
             yield wall, info["sim_steps_this_step"], updates
     finally:
         env.close()
 
 
-def bench(env_id: str, n_steps: int, options: dict) -> tuple[float, float, dict, int]:
-    """One run of ``n_steps`` env steps; returns (wall seconds inside step(), simulator steps, seconds per
-    part, filter updates)."""
+def bench(env_id: str, n_steps: int, options: dict, with_resets: bool) -> tuple[float, float, dict, int]:
+    """One run of ``n_steps`` env steps; returns (wall seconds timed, simulator steps, seconds per part,
+    filter updates)."""
     SPENT.clear()
     wall = sim_steps = updates = 0
-    for _, (dt, sims, ups) in zip(range(n_steps), play(env_id, options)):
+    for _, (dt, sims, ups) in zip(range(n_steps), play(env_id, options, with_resets)):
         wall, sim_steps, updates = wall + dt, sim_steps + sims, updates + ups
     spent = dict(SPENT)
     spent["other"] = max(0.0, wall - sum(spent.values()))
     return wall, sim_steps, spent, updates
 
 
-def against(env_id: str, n_steps: int, code: str) -> None:
+def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: int | None) -> None:
     """The same episodes played by this code and by the code in ``code`` (a checkout of another commit), in
     two processes that take turns, one env step each: whatever the machine does meanwhile slows both alike.
     Prints the ratio of their times. Each process first plays the steps once untimed (both at once): a fresh
@@ -124,7 +154,8 @@ def against(env_id: str, n_steps: int, code: str) -> None:
     resampling), and once made a fresh worktree look four times slower."""
     if not (Path(code) / "emmi_gym" / "__init__.py").is_file():  # else the worker would import this code
         raise SystemExit(f"--against {code}: no emmi_gym package there (make one with git worktree add DIR REV)")
-    workers = [subprocess.Popen([sys.executable, __file__, "--worker", env_id], stdin=subprocess.PIPE,
+    settings = (["--with-resets"] if with_resets else []) + ([f"--threads={threads}"] if threads else [])
+    workers = [subprocess.Popen([sys.executable, __file__, "--worker", env_id, *settings], stdin=subprocess.PIPE,
                                 stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=path))
                for path in (str(REPO), str(Path(code).resolve()))]
     for worker in workers:
@@ -148,35 +179,37 @@ def against(env_id: str, n_steps: int, code: str) -> None:
         worker.stdin.close()
         worker.wait()
     this, other = times.sum(axis=1)
-    print(f"{env_id}: {n_steps} env steps in {this:.1f} s with this code, {other:.1f} s with {code}: "
-          f"{other / this:.2f} times as fast")
+    what = "env steps and the resets after episodes' last steps" if with_resets else "env steps"
+    print(f"{env_id}: {n_steps} {what} in {this:.1f} s with this code ({n_steps / this:.2f}/s), {other:.1f} s "
+          f"with {code} ({n_steps / other:.2f}/s): {other / this:.2f} times as fast"
+          f"{f' (kernels on {threads} thread(s))' if threads else ''}")
 
 
-def worker(env_id: str) -> None:
+def worker(env_id: str, with_resets: bool) -> None:
     """The other end of :func:`against`: "warm N" plays N steps untimed and starts the episodes again;
     "step" plays one step and writes its wall time back."""
-    episodes = play(env_id, {})
+    episodes = play(env_id, {}, with_resets)
     for line in sys.stdin:
         if line.startswith("warm"):
             for _ in zip(range(int(line.split()[1])), episodes):
                 pass
             episodes.close()
-            episodes = play(env_id, {})
+            episodes = play(env_id, {}, with_resets)
             print("warm", flush=True)
         else:
             print(next(episodes)[0], flush=True)
 
 
-def report(env_id: str, n_steps: int, repeats: int, options: dict) -> None:
+def report(env_id: str, n_steps: int, repeats: int, options: dict, with_resets: bool) -> None:
     """The median of ``repeats`` runs of the same episodes (and the range of the rates)."""
-    runs = [bench(env_id, n_steps, options) for _ in range(repeats)]
+    runs = [bench(env_id, n_steps, options, with_resets) for _ in range(repeats)]
     walls = np.array([run[0] for run in runs])
     wall, sim_steps, spent, updates = runs[int(np.argsort(walls)[len(walls) // 2])]
     rates = n_steps / walls
     print(f"{env_id}{f' {options}' if options else ''}: {n_steps / wall:.1f} env steps/s ({rates.min():.1f}-{rates.max():.1f} over {repeats} runs), "
           f"{sim_steps / wall:.0f} simulator steps/s, {1e3 * spent['rbpf'] / max(updates, 1):.2f} ms of RBPF per "
           f"update ({n_steps} env steps, {sim_steps} simulator steps, {updates} filter updates, "
-          f"{wall:.1f} s of step() in the median run)")
+          f"{wall:.1f} s of step(){' and resets' if with_resets else ''} in the median run)")
     print("  time share: " + ", ".join(f"{k} {100 * v / wall:.0f}%" for k, v in spent.items()))
 
 
@@ -190,10 +223,17 @@ def main() -> None:
                         "play the same steps with both, in turns, and print the ratio of their times")
     parser.add_argument("--options", default="{}", help="JSON of gym.make options for every id (another "
                         "setting's speed: its episodes differ), e.g. '{\"particles\": 8}'; not with --against")
+    parser.add_argument("--with-resets", action="store_true", help="count the reset after an episode's last step "
+                        "with that step (whole decisions, as training waits for them)")
+    parser.add_argument("--threads", type=int, choices=range(1, 257), metavar="N",
+                        help="threads of the kernels (default: one per core)")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.threads:
+        set_kernel_threads(args.threads)
     if args.worker:
-        return worker(args.worker)
+        return worker(args.worker, args.with_resets)
+    time_the_parts()
     from _options import checked, json_object  # here, not in the workers: they may run older code
 
     from emmi_gym.env import EnvConfig
@@ -209,9 +249,9 @@ def main() -> None:
         velocity = gym.spec(env_id).kwargs.get("action_mode") == "velocity"
         n_steps = args.velocity_steps if velocity else args.decisions
         if args.against:
-            against(env_id, n_steps, args.against)
+            against(env_id, n_steps, args.against, args.with_resets, args.threads)
         else:
-            report(env_id, n_steps, args.repeats, options)
+            report(env_id, n_steps, args.repeats, options, args.with_resets)
 
 
 if __name__ == "__main__":

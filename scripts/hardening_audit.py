@@ -1,6 +1,6 @@
 """Replay the hardening audits: each hostile or broken input, and what happens to it now.
 
-Prints two markdown tables. The first: case -> outcome (the error's first line, or what was
+Prints three markdown tables. The first: case -> outcome (the error's first line, or what was
 returned), the seconds it took and the peak memory Python allocated for it (tracemalloc); every
 case runs in this process under a time limit of its own. The second: the inputs of the second
 audit (floor-plan images, map_server files, map sets, gzipped logs, configuration chains, model
@@ -8,10 +8,14 @@ files), each given to the command or function it targets in a process of its own
 60 s or above 3 GB: its exit status, the last line it printed (the error, or the last progress
 bar if it was killed), the seconds and the process's peak resident memory. Every probe should
 end within the minute (or show progress) under 1 GB, with a message naming the file, field or
-option.
+option. The third: the training side (``_training_probes``: runs, clones, resumes, model and
+demonstration files, training records, the tools' CSVs), each probe with a verdict (a clear error,
+did what it should, or a silent wrong result, data loss, a raw traceback, over 1 GB or 120 s) and a
+summary line counting them.
 
-    python scripts/hardening_audit.py                  # about five minutes
-    python scripts/hardening_audit.py --probes-only    # the second table (the inputs take ~30 s to make)
+    python scripts/hardening_audit.py                  # about ten minutes
+    python scripts/hardening_audit.py --probes-only    # the second and third tables (inputs: ~1 min to make)
+    python scripts/hardening_audit.py --training-side  # the third table (a small run trained first, ~30 s)
     python scripts/hardening_audit.py --train          # also Ctrl-C / kill -INT of a training run (~1 min more)
 """
 
@@ -517,7 +521,8 @@ def _measure(command: list[str], limit: float, cap_mb: float, pick: str | None =
     if pick is not None:
         last = next((line for line in lines if re.search(pick, line)), last)
     return {"rc": process.returncode, "seconds": seconds, "peak_mb": usage.ru_maxrss / 1024, "killed": killed[0],
-            "last_output": last_output[0], "last": last, "progress": bool(bars)}
+            "last_output": last_output[0], "last": last, "progress": bool(bars),
+            "traceback": "Traceback (most recent call last)" in text}
 
 
 def run_probe(command: list[str], limit: float = PROBE_LIMIT, pick: str | None = None) -> dict:
@@ -525,7 +530,12 @@ def run_probe(command: list[str], limit: float = PROBE_LIMIT, pick: str | None =
     source = (f"import json, sys\n{inspect.getsource(_measure)}\n"
               f"print(json.dumps(_measure(json.loads(sys.argv[1]), {limit!r}, {MEMORY_CAP_MB!r}, {pick!r})))")
     result = subprocess.run([sys.executable, "-c", source, json.dumps(command)], capture_output=True, text=True, check=False)
-    return json.loads(result.stdout.strip().splitlines()[-1])
+    lines = result.stdout.strip().splitlines()
+    if not lines:  # the small process measuring the probe was killed too (the kernel's out-of-memory killer)
+        return {"rc": result.returncode, "seconds": float("nan"), "peak_mb": float("nan"), "progress": False,
+                "killed": "the probe's runner died (out of memory?)", "last_output": None, "last": "",
+                "traceback": False}
+    return json.loads(lines[-1])
 
 
 def probes(folder: Path, only: str | None = None) -> None:
@@ -542,14 +552,44 @@ def probes(folder: Path, only: str | None = None) -> None:
         print(f"| {label} | {r['rc']} | {outcome} | {r['seconds']:.1f} | {r['peak_mb']:.0f} |", flush=True)
 
 
+def training_side(folder: Path, only: str | None = None) -> None:
+    """The training side's probes (``_training_probes``): a table of verdicts and a summary line."""
+    from _training_probes import LIMIT_MB, LIMIT_SECONDS, digest, training_probes, verdict
+
+    print("\n| probe (training side) | exit | verdict | outcome (last line of output) | s | peak MB |\n"
+          "| --- | --- | --- | --- | --- | --- |", flush=True)
+    counts: dict[str, int] = {}
+    for probe in training_probes(folder):
+        if only is not None and only not in probe.label:
+            continue
+        before = digest(probe.keep)
+        r = run_probe(probe.command, limit=LIMIT_SECONDS)
+        after = digest(probe.keep)
+        kind, words = verdict(probe, r, [Path(p).name for p in before if before[p] != after[p]])
+        counts[kind] = counts.get(kind, 0) + 1
+        print(f"| {probe.label} | {r['rc']} | {kind}: {words} | {r['last'][:240].replace('|', '/')} | "
+              f"{r['seconds']:.1f} | {r['peak_mb']:.0f} |", flush=True)
+    print(f"\ntraining side: {sum(counts.values())} probes: {counts.get('clear error', 0)} clear errors, "
+          f"{counts.get('ok', 0)} did what they should; {counts.get('SILENT WRONG', 0)} silent wrong results, "
+          f"{counts.get('DATA LOSS', 0)} data loss, {counts.get('TRACEBACK', 0)} raw tracebacks, "
+          f"{counts.get('LIMIT', 0)} over {LIMIT_MB / 1024:.0f} GB or {LIMIT_SECONDS:.0f} s", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--train", action="store_true", help="also interrupt two training runs")
     parser.add_argument("--probes-only", action="store_true", help="only the probes run in a subprocess each")
+    parser.add_argument("--training-side", action="store_true",
+                        help="only the training side's probes (runs, clones, resumes, model and demonstration files, "
+                             "training records, the tools' CSVs)")
     parser.add_argument("--only", default=None, metavar="TEXT", help="only the probes whose label holds TEXT")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
+        (folder / "training").mkdir()
+        if args.training_side:
+            training_side(folder / "training", args.only)
+            return
         if not args.probes_only:
             print("| case | outcome | s | peak MB |\n| --- | --- | --- | --- |")
             for label, action in cases(folder):
@@ -557,6 +597,7 @@ def main() -> None:
                 print(f"| {label} | {outcome[:220].replace('|', '/')} | {seconds:.2f} | {peak:.1f} |", flush=True)
         (folder / "probes").mkdir()
         probes(folder / "probes", args.only)
+        training_side(folder / "training", args.only)
         if args.train:
             for label, outcome, seconds in training_interrupts(folder):
                 print(f"| {label} | {outcome} | {seconds:.1f} after SIGINT | - |", flush=True)

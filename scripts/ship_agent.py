@@ -24,6 +24,7 @@ from emmi_gym import pretrained
 from emmi_gym.experiments.comparison import markdown_table, policy_means
 from emmi_gym.experiments.report import read_csv
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
+from emmi_gym.training.records import TrainingRecordError
 from emmi_gym.training.train import TRAINING_RECORD, load_run_config, machine_description, training_record
 
 MAX_MODEL_BYTES = 10 * 2**20
@@ -52,7 +53,10 @@ def main() -> None:
         parser.error(f"no model.zip in {args.run}")
     if model.stat().st_size > MAX_MODEL_BYTES:
         parser.error(f"{model} has {model.stat().st_size} bytes; a shipped agent has at most {MAX_MODEL_BYTES}")
-    record = training_record(args.run)
+    try:
+        record = training_record(args.run)
+    except TrainingRecordError as exc:  # damaged or hand-edited: said in a line, before anything is copied
+        parser.error(str(exc))
     if record is None and args.training_seconds is None:
         parser.error(f"{args.run} has no {TRAINING_RECORD}: give --training-seconds")
 

@@ -397,7 +397,7 @@ def test_targets_near_a_blocked_attempt_are_not_offered_again():
     env.reset(seed=0)
     core = env.unwrapped
     first = next(t for t in core.targets if t is not None)
-    slots = candidate_slots(core._expected, core.slam.paths[core.slam.best], core.action_type.navigation.costs, 6, 2,
+    slots = candidate_slots(core.expected_map, core.slam.paths[core.slam.best], core.action_type.navigation.costs, 6, 2,
                             blocked=[(first.x, first.y)])
     assert all(t is None or np.hypot(t.x - first.x, t.y - first.y) > BLOCKED_RADIUS for t in slots)
     assert sum(t is not None for t in slots) >= 1
@@ -419,8 +419,7 @@ def test_targets_are_offered_again_when_every_one_lies_by_a_blocked_attempt():
                                  for t in offered):
             break
         core.action_type.blocked.extend((t.x, t.y) for t in offered)
-        core._stale = True
-        core._refresh()
+        core.action_type.refresh()
     else:
         pytest.fail("targets away from every blocked point were still offered after 30 rounds")
 

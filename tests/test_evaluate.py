@@ -107,5 +107,8 @@ def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path)
                           progress=False)
     assert [r["ate"] for r in alone] == [r["ate"] for r in last]  # the same episodes as evaluate plays
 
-    with pytest.raises(FileNotFoundError, match="no checkpoint in"):
+    with pytest.raises(FileNotFoundError, match="run folder .*empty does not exist"):
+        score_checkpoints(tmp_path / "empty", progress=False)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match="no checkpoint in .*empty/checkpoints"):
         score_checkpoints(tmp_path / "empty", progress=False)

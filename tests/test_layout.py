@@ -55,3 +55,151 @@ def test_each_package_imports_only_the_packages_below_it():
 
 def test_no_loose_modules_beside_the_packages():
     assert sorted(p.name for p in ROOT.glob("*.py")) == ["__init__.py", "cli.py"]
+
+
+def module_name(path: Path) -> str:
+    """The dotted name of a module of the package (a package's ``__init__.py`` is the package itself)."""
+    parts = ["emmi_gym", *path.relative_to(ROOT).with_suffix("").parts]
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the package's modules it imports, from every ``import`` and ``from ... import`` in its
+    file: at module level, inside functions and under ``if TYPE_CHECKING`` alike (each says the module
+    needs the other). ``from A import b`` links to the module ``A.b`` when ``b`` is a module, else to
+    ``A`` (``A``'s ``__init__`` for a package); relative imports are resolved against the module's own
+    package."""
+    modules = {module_name(path): path for path in ROOT.rglob("*.py")}
+    graph = {}
+    for name, path in modules.items():
+        package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+        linked = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                named = node.module.split(".") if node.module else []
+                base = ".".join(package[:len(package) - node.level + 1] + named if node.level else named)
+                for alias in node.names:
+                    if f"{base}.{alias.name}" in modules:
+                        linked.add(f"{base}.{alias.name}")
+                    elif base in modules:
+                        linked.add(base)
+            elif isinstance(node, ast.Import):
+                linked |= {alias.name for alias in node.names if alias.name in modules}
+        graph[name] = linked - {name}
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan's algorithm): each holds a cycle."""
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(module):
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        on_stack.add(module)
+        for other in graph[module]:
+            if other not in index:
+                visit(other)
+                low[module] = min(low[module], low[other])
+            elif other in on_stack:
+                low[module] = min(low[module], index[other])
+        if low[module] == index[module]:
+            component = []
+            while not component or component[-1] != module:
+                component.append(stack.pop())
+                on_stack.discard(component[-1])
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for module in sorted(graph):
+        if module not in index:
+            visit(module)
+    return cycles
+
+
+def test_import_cycles_are_found():
+    assert import_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert import_cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycle_among_the_modules():
+    """A module can be read, tested and changed knowing only the modules below it: none imports, even for
+    type hints only, a module that imports it back, directly or through others."""
+    graph = import_graph()
+    assert "emmi_gym.env.actions" in graph["emmi_gym.env.emmi_env"]  # the graph resolves relative imports
+    assert import_cycles(graph) == []
+
+
+def private_reaches(source: str) -> list[str]:
+    """Where ``source`` reads or writes another object's underscore attribute: ``x._name`` for any ``x``
+    but ``self``, ``cls`` and ``super()`` (whose privates are the class's own). Dunder attributes
+    (``__name__``, ``__class__``) are the language's public protocol and do not count; nor do names a
+    module imports (a package's private module, ``from . import _kernels``, is the package's own), nor
+    ``getattr`` with a string. One line each: ``line: expression``."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if not (isinstance(node, ast.Attribute) and node.attr.startswith("_")):
+            continue
+        if node.attr.startswith("__") and node.attr.endswith("__"):
+            continue
+        owner = node.value
+        if isinstance(owner, ast.Name) and owner.id in ("self", "cls"):
+            continue
+        if isinstance(owner, ast.Call) and isinstance(owner.func, ast.Name) and owner.func.id == "super":
+            continue
+        found.append((node.lineno, node.col_offset, ast.unparse(node)))
+    return [f"{line}: {expression}" for line, _, expression in sorted(found)]
+
+
+def test_private_reaches_are_found():
+    source = "self._a = env._b\ncls._c\nsuper()._d()\nx.__class__\nmodule._e()\nself.env._f = 1\n"
+    assert private_reaches(source) == ["1: env._b", "5: module._e", "6: self.env._f"]
+
+
+def test_no_module_reaches_into_another_objects_private_attributes():
+    """A class's underscore attributes are its own to rename: a module that reads or writes them on another
+    object (the env's private step from an action type) breaks silently when they change."""
+    reaches = {str(path.relative_to(ROOT)): found for path in sorted(ROOT.rglob("*.py"))
+               if (found := private_reaches(path.read_text()))}
+    assert reaches == {}
+
+
+def attributes_set_outside_init(source: str) -> dict[str, list[str]]:
+    """For each class of ``source``: the ``self.`` attributes its other methods assign that neither its
+    ``__init__`` nor the ``__init__`` of a base class of the same module assigns."""
+    classes = {node.name: node for node in ast.walk(ast.parse(source)) if isinstance(node, ast.ClassDef)}
+
+    def assigned(cls: ast.ClassDef) -> dict[str, set[str]]:
+        by_method = {}
+        for method in (f for f in cls.body if isinstance(f, ast.FunctionDef)):
+            targets = [t for n in ast.walk(method) for t in (n.targets if isinstance(n, ast.Assign) else
+                       [n.target] if isinstance(n, (ast.AugAssign, ast.AnnAssign)) else [])]
+            by_method[method.name] = {e.attr for t in targets for e in ast.walk(t) if isinstance(e, ast.Attribute)
+                                      and isinstance(e.value, ast.Name) and e.value.id == "self"}
+        return by_method
+
+    def declared(cls: ast.ClassDef) -> set[str]:
+        bases = [classes[b.id] for b in cls.bases if isinstance(b, ast.Name) and b.id in classes]
+        return assigned(cls).get("__init__", set()).union(*(declared(base) for base in bases))
+
+    found = {}
+    for name, cls in classes.items():
+        late = {a for method, names in assigned(cls).items() if method != "__init__" for a in names} - declared(cls)
+        if late:
+            found[name] = sorted(late)
+    return found
+
+
+def test_attributes_set_outside_init_are_found():
+    source = ("class A:\n    def __init__(self):\n        self.a = 1\n"
+              "    def reset(self):\n        self.a = self.b = 2\n"
+              "class B(A):\n    def go(self):\n        self.a += 1\n        self.c: int = 3\n")
+    assert attributes_set_outside_init(source) == {"A": ["b"], "B": ["c"]}
+
+
+def test_the_environment_classes_declare_every_attribute_in_init():
+    """What an environment, its episode, action and observation types hold can be read off their
+    ``__init__``: no attribute first appears in a method called later."""
+    late = {str(path.relative_to(ROOT)): found for path in sorted((ROOT / "env").glob("*.py"))
+            if (found := attributes_set_outside_init(path.read_text()))}
+    assert late == {}

@@ -6,7 +6,8 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Iterable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, as_completed, wait
 
 from tqdm.auto import tqdm
 
@@ -19,14 +20,17 @@ def one_kernel_thread() -> None:
     set_kernel_threads(1)
 
 
-def run_in_processes(function, jobs: list, *, workers: int | None = None, desc: str = "runs",
-                     progress: bool = True, start_method: str | None = None) -> list:
+def run_in_processes(function, jobs: Iterable, *, total: int | None = None, workers: int | None = None,
+                     desc: str = "runs", progress: bool = True, start_method: str | None = None) -> list:
     """``function(job)`` for every job, in ``workers`` processes (default one per core, each running
-    its kernels on one thread; 1 = in this process), in the order they finish. ``start_method`` picks the multiprocessing context
-    ("spawn" for jobs that use torch)."""
-    workers = max(1, min(len(jobs), workers or os.cpu_count() or 1))
+    its kernels on one thread; 1 = in this process), in the order they finish. ``jobs`` may be a
+    generator (``total``: how many it gives): a few jobs per worker are taken from it at a time, so a
+    long list of jobs is never built. ``start_method`` picks the multiprocessing context ("spawn" for
+    jobs that use torch)."""
+    total = len(jobs) if total is None else total
+    workers = max(1, min(total, workers or os.cpu_count() or 1))
     results = []
-    with tqdm(total=len(jobs), desc=desc, unit="run", disable=not progress) as bar:
+    with tqdm(total=total, desc=desc, unit="run", disable=not progress) as bar:
         if workers == 1:
             for job in jobs:
                 results.append(function(job))
@@ -34,7 +38,14 @@ def run_in_processes(function, jobs: list, *, workers: int | None = None, desc: 
             return results
         context = mp.get_context(start_method) if start_method else None
         with ProcessPoolExecutor(workers, mp_context=context, initializer=one_kernel_thread) as pool:
-            for future in as_completed([pool.submit(function, job) for job in jobs]):
+            running: set = set()
+            for job in jobs:
+                if len(running) >= 2 * workers:  # a job queued behind each running one keeps every worker busy
+                    finished, running = wait(running, return_when=FIRST_COMPLETED)
+                    results.extend(future.result() for future in finished)
+                    bar.update(len(finished))
+                running.add(pool.submit(function, job))
+            for future in as_completed(running):
                 results.append(future.result())
                 bar.update()
     return results

@@ -13,14 +13,15 @@ Each type gives the action space (:meth:`ActionType.space`), carries out one act
 ``"velocity"``            ``"discrete"``        :class:`DiscreteVelocityAction`
 ========================  ====================  ===================================
 
-A type is a part of its environment: it reads the environment's state (the filter, the
-simulator, the expected map) and drives the robot through it.
+A type reads the environment's public state (``env.config``, ``env.geometry``, ``env.slam``,
+``env.expected_map``) and drives the episode's robot, ``env.episode`` (a
+:class:`~emmi_gym.env.episode.RobotEpisode`: one simulator step at a time, the filter fed as it
+goes), as HighwayEnv's action types drive the env's vehicle; the environment owns the loop round it.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
+import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
@@ -29,9 +30,6 @@ from ..inputs.validation import OptionError
 from ..navigation.candidates import Target
 from ..navigation.executor import Limits, MacroActionExecutor
 from .config import SOURCE
-
-if TYPE_CHECKING:
-    from .emmi_env import EmmiEnv
 
 #: Discrete velocity actions: (v, omega) as fractions of the robot's limits.
 DISCRETE_VELOCITIES = ((0.0, 0.0), (1.0, 0.0), (0.3, 1.0), (0.3, -1.0), (-0.5, 0.0))
@@ -45,13 +43,14 @@ class ActionType:
 
     The environment calls :meth:`set_world` when it loads a world, :meth:`reset` at every reset,
     :meth:`refresh` whenever the filter updated (after the expected map and its measures were
-    recomputed), :meth:`act` once per step and :meth:`truncated` after it.
+    recomputed) or :meth:`wants_refresh` says so, :meth:`act` once per step and :meth:`truncated`
+    after it. ``env`` is the :class:`~emmi_gym.env.EmmiEnv` the type belongs to.
     """
 
     #: Action slots that hold candidate targets (the rows of the observation's ``targets``); 0: none.
     n_slots = 0
 
-    def __init__(self, env: EmmiEnv):
+    def __init__(self, env: gym.Env):
         self.env = env
         self.decisions = 0
 
@@ -76,6 +75,11 @@ class ActionType:
 
     def refresh(self) -> None:
         """The filter updated: recompute what depends on the expected map."""
+
+    def wants_refresh(self) -> bool:
+        """Whether :meth:`refresh` must run after this step although the filter did not update (the type's
+        own state changed what it offers)."""
+        return False
 
     def truncated(self) -> bool:
         """Whether the episode ends for this type's own budget (the simulator's time is the environment's)."""
@@ -112,7 +116,7 @@ class WaypointAction(ActionType):
     held: ``"frontier"``, ``"revisit"`` or ``"none"``.
     """
 
-    def __init__(self, env: EmmiEnv):
+    def __init__(self, env: gym.Env):
         super().__init__(env)
         self.n_slots = env.config.n_actions
         self.navigation: MacroActionExecutor | None = None
@@ -120,6 +124,7 @@ class WaypointAction(ActionType):
         self.spreads: list[float] = []
         self.blocked: list[tuple[float, float]] = []  # where attempts ended blocked this episode
         self.revisited: list[tuple[float, float]] = []  # the revisit targets gone to this episode
+        self._gave_up_target = False  # since the last refresh: the slots must be recomputed without it
 
     def space(self) -> spaces.Discrete:
         return spaces.Discrete(self.n_slots)
@@ -151,32 +156,37 @@ class WaypointAction(ActionType):
                 np.hypot(target.x - x, target.y - y) > cfg.revisit_spacing for x, y in self.revisited)
 
         keep = worth_closing if cfg.min_loop_spread > 0 or cfg.revisit_spacing > 0 else None
-        self.slots = self.navigation.targets(_EnvRobot(env), env._expected, slam.paths[slam.best],
+        self.slots = self.navigation.targets(env.episode, env.expected_map, slam.paths[slam.best],
                                              cfg.n_frontiers, cfg.n_revisits, self.blocked, keep)
         self.spreads = [spread(t) if t is not None and t.kind == "revisit" else 0.0 for t in self.slots]
+        self._gave_up_target = False
+
+    def wants_refresh(self) -> bool:
+        """After a target was given up: the slots are recomputed without it."""
+        return self._gave_up_target
 
     def act(self, action) -> dict:
-        target_kind = self._go(int(action))
+        target_kind = self._go_to_slot(int(action))
         self.decisions += 1
         return {"target_kind": target_kind}
 
-    def _go(self, action: int) -> str:
-        """Go to the target of slot ``action``; the kind of target it was ("frontier", "revisit", or
-        "none" for an empty slot)."""
+    def _go_to_slot(self, action: int) -> str:
+        """Drive the episode's robot to the target of slot ``action``; the kind of target it was ("frontier",
+        "revisit", or "none" for an empty slot)."""
         if not 0 <= action < self.n_slots:
             raise ValueError(f"action {action} is outside Discrete({self.n_slots})")
-        env = self.env
+        robot = self.env.episode
         target: Target | None = self.slots[action]
         if target is not None and target.kind == "revisit":
             self.revisited.append(target.xy)
-        outcome = self.navigation.follow(_EnvRobot(env), target) if target is not None else "stayed"
+        outcome = self.navigation.follow(robot, target) if target is not None else "stayed"
         if outcome == "blocked" or (outcome == "stayed" and target is not None):  # never offer it again
             self.blocked.append((target.x, target.y))
-            env._stale = True
+            self._gave_up_target = True
         if outcome == "stayed":  # an empty slot, or a target the robot cannot leave for
             omega = self._recovery_turn_rate()
             for _ in range(STAY_STEPS):
-                env._sim_step(0.0, omega)
+                robot.step(0.0, omega)
         return "none" if target is None else target.kind
 
     def _recovery_turn_rate(self) -> float:
@@ -223,7 +233,7 @@ class VelocityAction(ActionType):
 
     def act(self, action) -> dict:
         v, omega = self.command(action)
-        self.env._sim_step(v, omega)
+        self.env.episode.step(v, omega)
         return {}
 
 
@@ -272,35 +282,10 @@ def by_name(table: dict, option: str, name):
         raise OptionError(SOURCE, option, f"one of {list(table)}", name) from None
 
 
-def action_factory(env: EmmiEnv, config) -> ActionType:
+def action_factory(env: gym.Env, config) -> ActionType:
     """The action type the options ``action_mode`` (and ``velocity_actions``) of ``config`` name, for ``env``."""
     chosen = by_name(ACTION_TYPES, "action_mode", config.action_mode)
     if isinstance(chosen, dict):  # a family: the second option picks its member
         chosen = by_name(chosen, "velocity_actions", config.velocity_actions)
     return chosen(env)
 
-
-class _EnvRobot:
-    """The env as the :class:`~emmi_gym.navigation.executor.Robot` a macro-action drives."""
-
-    def __init__(self, env: EmmiEnv):
-        self.env = env
-
-    @property
-    def filter_step(self) -> int:
-        return self.env.slam.step
-
-    def pose_estimate(self) -> np.ndarray:
-        return self.env.slam.pose_estimate(self.env.sim.odometry_pose)
-
-    def scan(self) -> np.ndarray:
-        return self.env._scan_now()
-
-    def expected_map(self) -> np.ndarray:
-        return self.env.slam.expected_map()
-
-    def step(self, v: float, omega: float) -> bool:
-        return self.env._sim_step(v, omega)
-
-    def out_of_time(self) -> bool:
-        return self.env.sim_steps >= self.env.config.max_sim_steps

@@ -8,13 +8,13 @@ import numpy as np
 from ..geometry.grid import GridGeometry
 from ..navigation.candidates import Target
 from ..navigation.follower import WaypointFollower
-from ..scoring.oracle import OracleMap
 from ..scoring.scores import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
-from ..slam import RBPF
-from ..world import RobotConfig, Simulator, rasterise
+from ..slam import RBPF, UpdateMetrics
+from ..world import GroundTruth, RobotConfig, Simulator, WorldSpec, rasterise
 from ..world.map_sets import WorldSource
 from .actions import ActionType, action_factory
 from .config import REWARDS, EnvConfig, make_config
+from .episode import RobotEpisode
 from .memory import check_env_memory
 from .observation import ObservationType, observation_factory
 from .rendering import HumanWindow, render_frame
@@ -34,6 +34,12 @@ class EmmiEnv(gym.Env):
     MaskablePPO) and the robot drives there; in velocity mode it is a velocity command for one
     simulator step. What the agent observes is the observation type's
     (:mod:`emmi_gym.env.observation`, ``observation_type``, picked by ``observation``).
+
+    The environment owns the loop: the action type drives the episode's robot (``episode``, a
+    :class:`~emmi_gym.env.episode.RobotEpisode`: the simulator, the filter fed from it, the oracle
+    map), then the environment recomputes what it derives from the expected map if the filter
+    updated, and the observation type reads the result through public accessors
+    (:attr:`expected_map`, :attr:`metrics`, :attr:`estimated_pose`, :attr:`targets`).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -61,15 +67,26 @@ class EmmiEnv(gym.Env):
         if fixed is not None:  # refuse maps too large now, not at the first reset
             grid = GridGeometry.covering(*fixed.bounds, cfg.resolution)
             check_env_memory(grid, cfg.particles, fixed.source or fixed.name)
+        # the world's (set when a world is loaded)
+        self.world: WorldSpec | None = None
+        self.sim: Simulator | None = None
+        self.geometry: GridGeometry | None = None
+        self.truth: GroundTruth | None = None
+        self._reachable: np.ndarray | None = None  # the truth's reachable free space, and its cells (at least 1)
+        self._n_reachable = 1
+        # the episode's (set at reset)
+        self.slam: RBPF | None = None
+        self.episode: RobotEpisode | None = None
+        # derived from the expected map, recomputed when the filter updated (_refresh)
+        self._metrics: UpdateMetrics | None = None
+        self._expected: np.ndarray | None = None
+        self._coverage = self._map_accuracy = self._oracle_accuracy = self._wall_consistency = self._ate = 0.0
+        self._snapshot: Snapshot | None = None  # the measures the next step's reward compares with
+        self._window: HumanWindow | None = None
         self.action_type: ActionType = action_factory(self, cfg)
         self.action_space = self.action_type.space()
         self.observation_type: ObservationType = observation_factory(self, cfg)
         self.observation_space = self.observation_type.space()
-        self.world = None
-        self.sim: Simulator | None = None
-        self.slam: RBPF | None = None
-        self._stale = True  # the filter updated since the expected map and its products were computed
-        self._window: HumanWindow | None = None
 
     # ------------------------------------------------------------------ episode
 
@@ -84,23 +101,16 @@ class EmmiEnv(gym.Env):
         if world is not self.world:
             self._set_world(world)
         self.sim.reset(rng)
-        self._scan_cache = None
         self.slam = RBPF(self.slam_config, max_range=self.laser_config.max_range, geometry=self.geometry)
         self.slam.reset(self.sim.odometry_pose, rng)
-        self._oracle = OracleMap(self.slam)
-        self.sim_steps = self.collisions = 0
         self.action_type.reset()
-        self._true_at_updates = np.empty((64, 3))  # the true pose at each filter update, the first _n_true rows
-        self._n_true = 0
-        self._true_path = [self.sim.true_pose]
-        self._metrics = None
-        self._new_updates: list[dict] = []
-        self._feed(self.sim.odometry_pose, self.sim.true_pose)
+        self.episode = RobotEpisode(self.sim, self.slam, self.laser_config.angles, self.config.max_sim_steps,
+                                    measure_updates=self.config.update_records)
         if start_at == "decision":
             if "to_decision" not in world.routes:
                 raise ValueError(f"start_at='decision' needs a 'to_decision' route in world '{world.name}'")
             self._drive_route(world, "to_decision")
-        self.sim_steps = self.collisions = 0
+        self.episode.restart_counts()
         self._refresh()
         self._snapshot = self._take_snapshot()
         return self.observation_type.observe(), self._info({k: 0.0 for k in (*REWARDS, "time", "collision")})
@@ -117,7 +127,7 @@ class EmmiEnv(gym.Env):
             v, omega = follower.command(self.sim.true_pose)
             if follower.done:
                 return
-            self._sim_step(v, omega)
+            self.episode.step(v, omega)
         x, y, _ = self.sim.true_pose
         raise RuntimeError(f"world '{world.name}': the route '{name}' ({length:.1f} m) was not driven within "
                            f"{budget} simulator steps; the robot is stuck at ({x:.2f}, {y:.2f}) before waypoint "
@@ -154,58 +164,27 @@ class EmmiEnv(gym.Env):
             self.render()
         return observation, reward, bool(terminated), bool(truncated and not terminated), info
 
-    def _scan_now(self) -> np.ndarray:
-        """The laser scan at the current simulator time, cast once and shared by the safety layer and the filter."""
-        if self._scan_cache is None or self._scan_cache[0] != self.sim.time:
-            self._scan_cache = (self.sim.time, self.sim.scan())
-        return self._scan_cache[1]
-
-    def _sim_step(self, v: float, omega: float) -> bool:
-        result = self.sim.step(v, omega)
-        self.sim_steps += 1
-        self.collisions += int(result.collided)
-        self._true_path.append(result.true_pose)
-        self._feed(result.odometry_pose, result.true_pose)
-        return result.collided
-
-    def _feed(self, odometry_pose, true_pose) -> None:
-        """Give the RBPF a scan when it will use one (the laser is not simulated in between); with
-        ``update_records``, keep the update's metrics for ``info``."""
-        if not self.slam.update_due(odometry_pose):
-            return
-        metrics = self.slam.process(odometry_pose, self._scan_now(), self._angles, self.sim.time,
-                                    measure=self.config.update_records)
-        self._oracle.insert(true_pose, self._scan_now(), self._angles)
-        if self._n_true == len(self._true_at_updates):  # doubled as needed: appending costs the same all episode
-            self._true_at_updates = np.concatenate([self._true_at_updates, np.empty_like(self._true_at_updates)])
-        self._true_at_updates[self._n_true] = true_pose
-        self._n_true += 1
-        if metrics is not None:
-            self._new_updates.append(metrics.measures())
-        self._stale = True
-
-    @property
-    def _angles(self) -> np.ndarray:
-        return self.laser_config.angles
-
     # ------------------------------------------------------------------ derived state (after filter updates)
 
     def _refresh(self) -> None:
-        """Recompute what depends on the expected map, only if the filter updated since last time."""
-        if not self._stale:
+        """Recompute what depends on the expected map, only if the filter updated since last time; else only
+        the action type's candidates, if it asks (a target it gave up)."""
+        if not self.episode.take_filter_updated():
+            if self.action_type.wants_refresh():
+                self.action_type.refresh()
             return
-        self._stale = False
         self._metrics = self.slam.measure()
         self._expected = self.slam.expected_map().copy()  # as of this refresh (the filter's own changes)
+        self._expected.flags.writeable = False  # handed out by expected_map, never changed
         # each map labelled once (unobserved, free, occupied), for coverage and every score
-        mine, seen = map_labels(self._expected), self._oracle.labels()
+        mine, seen = map_labels(self._expected), self.episode.oracle.labels()
         # coverage: the reachable free space the scans have swept, read on the oracle map (the same scans at
         # the true poses), so that it measures exploration and not how well the estimated map lines up
         # with the floor plan (a map turned by a few degrees would otherwise never reach the target)
         self._coverage = float(np.count_nonzero((seen == 0) & self._reachable)) / self._n_reachable
         self._map_accuracy = accuracy_of_labels(mine, self.truth.grid)
         self._oracle_accuracy, self._wall_consistency = oracle_scores_of_labels(mine, seen, self.geometry.resolution)
-        self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], self._true_at_updates[:self._n_true],
+        self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], self.episode.true_poses_at_updates,
                                               align=False)
         self.action_type.refresh()
         self.observation_type.refresh()
@@ -226,19 +205,36 @@ class EmmiEnv(gym.Env):
         return self.action_type.decisions
 
     @property
+    def sim_steps(self) -> int:
+        """Simulator steps taken this episode (after the drive to the decision point); 0 before a reset."""
+        return self.episode.sim_steps if self.episode is not None else 0
+
+    @property
+    def collisions(self) -> int:
+        """Simulator steps this episode spent driving into a wall; 0 before a reset."""
+        return self.episode.collisions if self.episode is not None else 0
+
+    @property
     def estimated_pose(self) -> np.ndarray:
         """The robot's pose as the RBPF believes it now (best particle plus odometry since its update)."""
-        return self.slam.pose_estimate(self.sim.odometry_pose)
+        return self.episode.pose_estimate()
 
     @property
     def true_path(self) -> np.ndarray:
         """(T, 3) true poses at every simulator step of the episode (ground truth, for evaluation only)."""
-        return np.array(self._true_path)
+        return np.array(self.episode.true_path)
 
     @property
     def expected_map(self) -> np.ndarray:
-        """A copy of the expected map now (eq. 6): occupancy probabilities on the grid of ``geometry``."""
-        return self._expected.copy()
+        """The expected map (eq. 6) as of the filter's last update before the observation: occupancy
+        probabilities on the grid of ``geometry``, read-only (each update gives a new array; copy it to
+        change it)."""
+        return self._expected
+
+    @property
+    def metrics(self) -> UpdateMetrics:
+        """The certainty of the particle set (EMMI, entropies, Neff) as of the same update as :attr:`expected_map`."""
+        return self._metrics
 
     @property
     def targets(self) -> list[Target | None]:
@@ -249,7 +245,7 @@ class EmmiEnv(gym.Env):
     def oracle_map(self) -> np.ndarray:
         """The oracle map now (:mod:`emmi_gym.scoring.oracle`): this episode's scans at the true poses, probabilities on
         the grid of ``geometry`` (ground truth, for evaluation only)."""
-        return self._oracle.probabilities()
+        return self.episode.oracle.probabilities()
 
     @property
     def loop_spreads(self) -> list[float]:
@@ -271,20 +267,15 @@ class EmmiEnv(gym.Env):
             "map_accuracy": self._map_accuracy, "oracle_accuracy": self._oracle_accuracy,
             "wall_consistency": self._wall_consistency, "ate": self._ate, "collisions": self.collisions,
             "sim_steps": self.sim_steps, "reward_components": dict(components), "world": self.world.name,
-            **({"rbpf_updates": self._take_updates()} if self.config.update_records else {}),
+            **({"rbpf_updates": self.episode.take_update_records()} if self.config.update_records else {}),
         }
-
-    def _take_updates(self) -> list[dict]:
-        """The metrics of every RBPF update since the last step (or since reset began), once."""
-        updates, self._new_updates = self._new_updates, []
-        return updates
 
     def render(self):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
         frame = render_frame(self.world.bounds, self.truth.grid, self.geometry, self._expected, self.sim.true_pose,
-                             self._true_path, self.slam.poses, self.slam.paths[self.slam.best],
+                             self.episode.true_path, self.slam.poses, self.slam.paths[self.slam.best],
                              self.robot_config.radius)
         if self.render_mode == "rgb_array":
             return frame

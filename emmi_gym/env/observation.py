@@ -9,8 +9,8 @@ the option ``observation`` names: ``"dict"`` (:class:`DictObservation`) or ``"im
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
+import gymnasium as gym
 import numba as nb
 import numpy as np
 from gymnasium import spaces
@@ -18,9 +18,6 @@ from gymnasium import spaces
 from ..geometry.grid import GridGeometry
 from ..navigation.planner import FREE_P, OCCUPIED_P
 from .actions import by_name
-
-if TYPE_CHECKING:
-    from .emmi_env import EmmiEnv
 
 UNKNOWN_PIXEL = 127
 PATH_PIXEL = 128
@@ -35,10 +32,13 @@ class ObservationType:
     """What an observation is (:meth:`space`) and how the environment makes it (:meth:`observe`).
 
     The environment calls :meth:`refresh` whenever the filter updated (after the expected map and
-    its measures were recomputed) and :meth:`observe` at every reset and step.
+    its measures were recomputed) and :meth:`observe` at every reset and step. A type reads the
+    environment's public state only (``env.expected_map``, ``env.metrics``, ``env.estimated_pose``,
+    ``env.slam``, ``env.action_type``), as HighwayEnv's observation types read the env's road
+    and vehicle.
     """
 
-    def __init__(self, env: EmmiEnv):
+    def __init__(self, env: gym.Env):
         self.env = env
 
     def space(self) -> spaces.Space:
@@ -62,7 +62,7 @@ class ImageObservation(ObservationType):
     at every step when egocentric), the robot at every step (:func:`map_and_path`,
     :func:`with_robot`)."""
 
-    def __init__(self, env: EmmiEnv):
+    def __init__(self, env: gym.Env):
         super().__init__(env)
         self._pooling = MapPooling()
         self._map_image: np.ndarray | None = None
@@ -80,7 +80,7 @@ class ImageObservation(ObservationType):
         env, cfg = self.env, self.env.config
         window = view_window(env.world.bounds, pose, cfg.obs_size, cfg.egocentric, cfg.egocentric_extent)
         if cfg.egocentric or self._stale:  # the map and the path change only at filter updates
-            map_channel = self._pooling(env._expected, env.geometry, window, cfg.obs_size)
+            map_channel = self._pooling(env.expected_map, env.geometry, window, cfg.obs_size)
             self._map_image = map_and_path(map_channel, env.slam.paths[env.slam.best], window, cfg.obs_size)
             self._stale = False
         return with_robot(self._map_image, pose, window, cfg.obs_size)
@@ -96,7 +96,7 @@ class DictObservation(ImageObservation):
     when the action type has target slots (waypoint actions), ``targets``: one row of
     :data:`TARGET_FEATURES` per slot (:func:`target_features`)."""
 
-    def __init__(self, env: EmmiEnv):
+    def __init__(self, env: gym.Env):
         super().__init__(env)
         self._certainty = np.zeros(2, dtype=np.float32)
 
@@ -113,7 +113,7 @@ class DictObservation(ImageObservation):
 
     def refresh(self) -> None:
         super().refresh()
-        metrics = self.env._metrics
+        metrics = self.env.metrics
         self._certainty = certainty_vector(metrics.emmi, metrics.pose_entropy)
 
     def observe(self) -> dict:
@@ -132,7 +132,7 @@ class DictObservation(ImageObservation):
 OBSERVATION_TYPES: dict[str, type[ObservationType]] = {"dict": DictObservation, "image": ImageObservation}
 
 
-def observation_factory(env: EmmiEnv, config) -> ObservationType:
+def observation_factory(env: gym.Env, config) -> ObservationType:
     """The observation type the option ``observation`` of ``config`` names, for ``env``."""
     return by_name(OBSERVATION_TYPES, "observation", config.observation)(env)
 
@@ -157,7 +157,8 @@ class MapPooling:
     """
 
     def __init__(self):
-        self._key = None
+        self._key = None  # the (grid, window, size) the index below was made for
+        self._cells = self._pixels = self._bounds = np.empty(0, dtype=np.int64)
 
     def _prepare(self, geometry: GridGeometry, window, size: int) -> None:
         x0, y0, mpp = window

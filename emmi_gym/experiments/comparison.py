@@ -14,6 +14,7 @@ reached, and the share of decisions that went back to close a loop.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import gymnasium as gym
@@ -98,9 +99,9 @@ def compare_on(episodes, policies, settings: ComparisonSettings = ComparisonSett
     """Every policy on each ``(world, seed)`` of ``episodes``, in ``workers`` processes (started by
     ``start_method``: "spawn" where a policy uses torch); rows sorted by world, seed, policy (with
     ``keep_steps``, each row's ``steps``: see :func:`run_episode`)."""
-    jobs = [(w if w is None else str(w), int(s), p, settings, keep_steps) for w, s in episodes for p in policies]
-    rows = run_in_processes(_run, jobs, workers=workers, desc="episodes", progress=progress,
-                            start_method=start_method)
+    jobs = ((w if w is None else str(w), int(s), p, settings, keep_steps) for w, s in episodes for p in policies)
+    rows = run_in_processes(_run, jobs, total=len(episodes) * len(policies), workers=workers, desc="episodes",
+                            progress=progress, start_method=start_method)
     order = {policy_name(p): i for i, p in enumerate(policies)}
     return sorted(rows, key=lambda r: (r["world"], r["seed"], order[r["policy"]]))
 
@@ -122,14 +123,38 @@ def policy_means(rows: list[dict]) -> list[dict]:
                                        for r in rows if r["policy"] == p])} for p in policies]
 
 
-def episodes_on(world, episodes: int, first_seed: int) -> list[tuple]:
+def episodes_on(world, episodes: int, first_seed: int) -> EpisodesOn:
     """``episodes`` (world, seed) pairs on ``world``: the first maps of a map set (a shipped set, a folder,
     a glob), each with ``first_seed``, going round the set with the next seeds if it has fewer maps;
-    one world (a name, a file, ``None`` for a generated one) with the seeds from ``first_seed`` on."""
+    one world (a name, a file, ``None`` for a generated one) with the seeds from ``first_seed`` on.
+    A sequence that makes each pair when it is asked for (the list of a million would not be built)."""
     files = map_set_files(world) if isinstance(world, str) else None
-    if files is None:
-        return [(world, first_seed + k) for k in range(episodes)]
-    return [(str(files[k % len(files)]), first_seed + k // len(files)) for k in range(episodes)]
+    return EpisodesOn(world if files is None else tuple(str(f) for f in files), files is not None, episodes, first_seed)
+
+
+@dataclass(frozen=True)
+class EpisodesOn(Sequence):
+    """The (world, seed) pairs of :func:`episodes_on`, made when asked for: on one world (``worlds`` is it,
+    ``is_set`` false) the seeds from ``first_seed`` on; on a map set (``worlds`` its files) its maps in turn,
+    the seed going up by one each round."""
+
+    worlds: object
+    is_set: bool
+    length: int
+    first_seed: int
+
+    def __len__(self) -> int:
+        return self.length
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(self.length))]
+        if not -self.length <= k < self.length:
+            raise IndexError(k)
+        k %= self.length
+        if not self.is_set:
+            return self.worlds, self.first_seed + k
+        return self.worlds[k % len(self.worlds)], self.first_seed + k // len(self.worlds)
 
 
 def paired(rows: list[dict], column: str, policy: str, baseline: str) -> np.ndarray:

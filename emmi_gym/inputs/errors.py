@@ -34,3 +34,10 @@ class FieldError(ValueError):
         got_text = "" if got is FieldError.NOTHING else f", got {excerpt(got)}"
         where = f"{source}: field '{field_path}'" if field_path else source
         super().__init__(f"{where}: expected {expected}{got_text}")
+
+
+#: What the package's readers raise for bad input, and nothing else: a :class:`FieldError` (or one of its
+#: kinds: ``OptionError``, ``AgentConfigError``, ``ModelFileError``, ``DemonstrationsError``, ``CsvFileError``,
+#: ``TrainingRecordError``, ``WorldFileError``...) naming the file and field, or a ``FileNotFoundError``
+#: where there is nothing at the path given. Commands turn these into one-line messages.
+INPUT_ERRORS = (FieldError, FileNotFoundError)

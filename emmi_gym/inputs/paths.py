@@ -34,15 +34,16 @@ def input_file(path, what: str, error=FieldError, *, pipes: bool = False) -> Pat
     except FileNotFoundError:
         raise FileNotFoundError(f"{what} {path} does not exist") from None
     except OSError as exc:  # a name too long, a loop of links, a folder on the way that cannot be searched
-        raise error(str(path), "", f"{_article(what)} that can be read ({exc.strerror})") from None
+        raise error(str(path), "", f"{with_article(what)} that can be read ({exc.strerror})") from None
     if not (stat.S_ISREG(mode) or (pipes and stat.S_ISFIFO(mode))):
-        raise error(str(path), "", f"{_article(what)}, not {file_kind(mode)}")
+        raise error(str(path), "", f"{with_article(what)}, not {file_kind(mode)}")
     if not os.access(path, os.R_OK):
-        raise error(str(path), "", f"{_article(what)} that can be read (permission denied)")
+        raise error(str(path), "", f"{with_article(what)} that can be read (permission denied)")
     return path
 
 
-def _article(what: str) -> str:
+def with_article(what: str) -> str:
+    """``what`` with "a" or "an" before it, unless it has an article already."""
     return what if what.split(" ", 1)[0] in ("a", "an", "the") else f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
 
 

@@ -16,6 +16,7 @@ import yaml
 
 from .errors import FieldError, excerpt
 from .paths import input_file
+from .text_files import read_text_file
 
 #: The largest YAML file read (world files and agent configurations are a few kB).
 MAX_YAML_BYTES = 1_000_000
@@ -85,19 +86,7 @@ def read_yaml_file(path, what: str, error=FieldError) -> dict:
     path = input_file(path, what, error)
     if path.suffix.lower() not in YAML_SUFFIXES:
         raise error(str(path), "", f"a {what} in YAML, named *{' or *'.join(YAML_SUFFIXES)}")
-    size = path.stat().st_size
-    if size > MAX_YAML_BYTES:
-        raise error(str(path), "", f"a {what} of at most {MAX_YAML_BYTES:,} bytes", f"{size:,} bytes")
-    raw = path.read_bytes()[:MAX_YAML_BYTES + 1]
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        raise error(str(path), "", "UTF-8 text (the file is UTF-16: save it as UTF-8)")
-    nul = raw.find(b"\0")
-    if nul >= 0:
-        raise error(str(path), "", f"a text file (byte {nul} is NUL: a binary file?)")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise error(str(path), "", f"UTF-8 text (byte {exc.start} is not UTF-8)") from None
+    text = read_text_file(path, what, MAX_YAML_BYTES, error)
     data = parse_yaml(text, str(path), error)
     if not isinstance(data, dict):
         raise error(str(path), "", f"a mapping of {what} fields at the top level, not a {type(data).__name__}")

@@ -4,16 +4,20 @@ checkpoint's row is the mean of the episodes' ground-truth measures.
 
 ``emmi-gym train``'s periodic evaluation plays one episode at a time in the learner's process, while
 the env workers wait; a run trained with ``eval.freq: 0`` gets its curve afterwards, on every core and
-on as many episodes as wanted (``scripts/score_checkpoints.py``)."""
+on as many episodes as wanted (``scripts/score_checkpoints.py``, :func:`main`)."""
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from ..experiments.comparison import compare_on, episodes_on
 from ..experiments.episodes import nanmean
-from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings
-from .train import checkpoints, is_whole_checkpoint, load_run_config
+from ..experiments.report import write_csv
+from ..inputs import arguments
+from ..inputs.paths import file_kind, output_folder
+from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings, format_table
+from .train import checkpoints, is_whole_checkpoint, load_run_config, save_atomically
 
 #: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
 MEASURES = ("return", "oracle_accuracy", "wall_consistency", "ate", "map_accuracy", "coverage", "reached_target",
@@ -28,10 +32,9 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
     named ``model_<N>``. The episodes are :func:`~emmi_gym.experiments.comparison.episodes_on` ``(world, episodes, seed)``
     in the run's evaluation env (by default on that env's own world); a damaged checkpoint (cut
     short by a kill) is skipped with a warning."""
-    run_dir = Path(run_dir)
-    found = [(decisions, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
-    if not found:
-        raise FileNotFoundError(f"no checkpoint in {run_dir / 'checkpoints'}: was it written by 'emmi-gym train'?")
+    if not 1 <= episodes <= arguments.MAX_EPISODES:
+        raise ValueError(f"episodes: expected an integer in [1, {arguments.MAX_EPISODES}], got {episodes!r}")
+    found = whole_checkpoints(run_dir)
     settings, own_world = comparison_settings(load_run_config(found[0][1]))
     agents = [TrainedAgent(str(path), f"model_{decisions}") for decisions, path in found]
     rows = compare_on(episodes_on(own_world if world is OWN_WORLD else world, episodes, seed), agents, settings,
@@ -41,3 +44,57 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
         mine = [r for r in rows if r["policy"] == f"model_{decisions}"]
         curve.append({"timesteps": decisions, **{k: nanmean([r[k] for r in mine]) for k in MEASURES}})
     return curve, rows
+
+
+def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
+    """The whole checkpoints of the run folder ``run_dir`` (see :func:`score_checkpoints`), ``(decisions, path)``;
+    a ``FileNotFoundError`` that says which is missing, the folder or its checkpoints."""
+    run_dir = Path(run_dir)
+    if not run_dir.exists():
+        raise FileNotFoundError(f"run folder {run_dir} does not exist")
+    if not run_dir.is_dir():
+        raise FileNotFoundError(f"{run_dir}: expected a run folder of 'emmi-gym train', not "
+                                f"{file_kind(run_dir.stat().st_mode)}")
+    found = [(decisions, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
+    if not found:
+        raise FileNotFoundError(f"no checkpoint in {run_dir / 'checkpoints'}: was {run_dir} written by "
+                                "'emmi-gym train'?")
+    return found
+
+
+#: The files :func:`main` writes into each run folder.
+CURVE_FILE, EPISODES_FILE = "checkpoint_scores.csv", "checkpoint_episodes.csv"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="score_checkpoints.py", description="Score every checkpoint of training "
+                                     "runs on the same held-out episodes, in parallel.")
+    parser.add_argument("runs", nargs="+", type=Path, help="run folders of 'emmi-gym train'")
+    parser.add_argument("--world", default=None, help="world, map set, folder or glob (default: the run's own)")
+    parser.add_argument("--episodes", type=arguments.EPISODES, default=16, help="episodes per checkpoint")
+    parser.add_argument("--seed", type=arguments.SEED, default=EVALUATION_SEED, help="first episode seed")
+    parser.add_argument("--workers", type=arguments.integer(1), default=None,
+                        help="worker processes (default one per core)")
+    return parser
+
+
+def score_runs(args: argparse.Namespace) -> int:
+    """Score every run of ``args`` (see :func:`build_parser`) and write, in each run folder, :data:`CURVE_FILE`
+    (a row per checkpoint) and :data:`EPISODES_FILE` (every episode), each renamed into place once whole.
+    Every folder is checked first (there, with checkpoints, writable), before any episode is played."""
+    for run in args.runs:
+        whole_checkpoints(run)
+        output_folder(run, "run folder")
+    for run in args.runs:
+        curve, rows = score_checkpoints(run, OWN_WORLD if args.world is None else args.world, args.episodes,
+                                        args.seed, workers=args.workers)
+        save_atomically(lambda target, rows=curve: write_csv(target, rows), run / CURVE_FILE)
+        save_atomically(lambda target, rows=rows: write_csv(target, rows), run / EPISODES_FILE)
+        print(f"{run}: {len(curve)} checkpoints x {args.episodes} episodes: wrote {run / CURVE_FILE} and "
+              f"{run / EPISODES_FILE}\n{format_table(curve)}\n", flush=True)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``scripts/score_checkpoints.py``: bad input is a one-line error, not a traceback."""
+    return arguments.run_command(build_parser(), score_runs, argv)

@@ -12,78 +12,13 @@ with RL (``emmi-gym clone``).
 
 from __future__ import annotations
 
-import zipfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..concurrency.parallel import run_in_processes
-from ..inputs.paths import input_file
 from .config import AgentConfig
-
-
-#: The most a demonstrations file may unpack to (100,000 decisions of the 64 x 64 plans observation take 0.8 GiB).
-MAX_DEMONSTRATION_BYTES = 4 * 2**30
-
-
-@dataclass
-class Demonstrations:
-    """Decisions of a scripted policy: ``observations`` (a dict of stacked arrays), ``masks`` (bool,
-    decisions x actions) and ``actions`` (int64); ``episodes`` played."""
-
-    observations: dict[str, np.ndarray]
-    masks: np.ndarray
-    actions: np.ndarray
-    episodes: int
-
-    def __len__(self) -> int:
-        return len(self.actions)
-
-    def save(self, path) -> None:
-        """Write to ``path`` (a compressed ``.npz``)."""
-        np.savez_compressed(path, masks=self.masks, actions=self.actions, episodes=self.episodes,
-                            **{f"obs_{key}": value for key, value in self.observations.items()})
-
-    @classmethod
-    def load(cls, path) -> Demonstrations:
-        """The demonstrations :meth:`save` wrote to ``path``; a ``ValueError`` naming the file otherwise."""
-        path = input_file(path, "demonstrations file")
-        try:
-            with zipfile.ZipFile(path) as archive:
-                unpacked = sum(member.file_size for member in archive.infolist())
-            if unpacked > MAX_DEMONSTRATION_BYTES:
-                raise ValueError(f"at most {MAX_DEMONSTRATION_BYTES // 2**30} GiB unpacked, and its arrays would "
-                                 f"take {unpacked / 2**30:,.1f} GiB")
-            with np.load(path) as data:
-                observations = {key[4:]: data[key] for key in data.files if key.startswith("obs_")}
-                demonstrations = cls(observations, data["masks"], data["actions"], int(data["episodes"]))
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
-            raise ValueError(f"{path}: expected demonstrations written by 'emmi-gym clone' (an .npz with masks, "
-                             f"actions, episodes and obs_* arrays): {type(exc).__name__}: {exc}") from None
-        n = len(demonstrations.actions)
-        if not observations or any(len(v) != n for v in (demonstrations.masks, *observations.values())):
-            raise ValueError(f"{path}: expected as many masks and observations as actions ({n})")
-        masks, actions = demonstrations.masks, demonstrations.actions
-        if masks.ndim != 2 or not np.all((actions >= 0) & (actions < masks.shape[1])) or \
-                not masks[np.arange(n), np.clip(actions, 0, masks.shape[1] - 1)].all():
-            raise ValueError(f"{path}: expected every action to be a slot its mask allows")
-        return demonstrations
-
-    def check_fits(self, observation_space, where: str = "the demonstrations") -> None:
-        """A ``ValueError`` unless the observations have the keys and shapes of ``observation_space`` (a Dict)."""
-        shapes = {key: value.shape[1:] for key, value in self.observations.items()}
-        wanted = {key: space.shape for key, space in observation_space.spaces.items()}
-        if shapes != wanted:
-            raise ValueError(f"{where}: observations of shapes {shapes}; the configuration's env gives {wanted}")
-
-    @classmethod
-    def joined(cls, parts: list[Demonstrations]) -> Demonstrations:
-        """The decisions of every part, in order."""
-        keys = parts[0].observations
-        return cls({key: np.concatenate([p.observations[key] for p in parts]) for key in keys},
-                   np.concatenate([p.masks for p in parts]), np.concatenate([p.actions for p in parts]),
-                   sum(p.episodes for p in parts))
+from .demonstrations import Demonstrations
 
 
 def _demonstration(job) -> tuple[int, Demonstrations]:
@@ -116,8 +51,9 @@ def collect_demonstrations(config: AgentConfig, policy: str, episodes: int, seed
     seeded ``seed``, ``seed + 1``...; in ``workers`` processes, joined in the order of their seeds. Needs
     a waypoint env (action masks)."""
     check_cloneable(config)
-    jobs = [(config.env_id, dict(config.env_kwargs), policy, seed + k) for k in range(episodes)]
-    parts = run_in_processes(_demonstration, jobs, workers=workers, desc="demonstrations", progress=progress)
+    jobs = ((config.env_id, dict(config.env_kwargs), policy, seed + k) for k in range(episodes))
+    parts = run_in_processes(_demonstration, jobs, total=episodes, workers=workers, desc="demonstrations",
+                             progress=progress)
     return Demonstrations.joined([part for _, part in sorted(parts, key=lambda part: part[0])])
 
 

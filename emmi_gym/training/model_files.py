@@ -4,17 +4,21 @@ SB3 reads a model's members whole: a ``data`` member that deflates to gigabytes 
 takes that much memory before anything is checked, a zip without ``data`` ends in an
 ``AssertionError``, and a model of another algorithm than its run's configuration says fails
 deep inside the policy's constructor. Here the members' sizes (as the zip declares them: Python's
-zipfile never inflates a member past its declared size) are bounded, ``data`` must be there,
-and the policy class it names must be one of the configured algorithm's.
+zipfile never inflates a member past its declared size) are bounded, every member's CRC-32 is
+checked (a damaged file is named as damaged, not as "not a zip file"), ``data`` must be JSON nested
+at most a hundred deep (deeper, Python's parser would end in a ``RecursionError``), the weights must
+be in torch's format, and the policy class ``data`` names must be one of the configured algorithm's.
 """
 
 from __future__ import annotations
 
-import json
+import pickle
 import zipfile
+import zlib
 from pathlib import Path
 
 from ..inputs.errors import FieldError
+from ..inputs.json_files import parse_json
 from ..inputs.paths import input_file
 from .config import ALGORITHMS, algorithm_class
 
@@ -38,38 +42,37 @@ def _policy_modules(algorithm: str) -> set[str]:
 
 
 def check_model_file(path, algorithm: str) -> Path:
-    """``path`` checked to be a model that ``algorithm`` (one of :data:`ALGORITHMS`) can load, reading only its
-    zip directory and its ``data`` member (bounded): :class:`ModelFileError` naming the file otherwise."""
+    """``path`` checked to be a model that ``algorithm`` (one of :data:`ALGORITHMS`) can load, its members bounded
+    by the sizes the zip declares before any is read: each member's CRC-32, the weights' format (``*.pth``:
+    torch.save's zip; SB3 reads them with ``torch.load(weights_only=True)``) and the ``data`` member's
+    JSON (nesting bounded); :class:`ModelFileError` naming the file (and member) otherwise."""
     path = input_file(path, "model file", ModelFileError)
     where = str(path)
     try:
-        with zipfile.ZipFile(path) as archive:
-            members = archive.infolist()
-            if len(members) > MAX_MEMBERS:
-                raise ModelFileError(where, "", f"a model zip of at most {MAX_MEMBERS} members", f"{len(members)}")
-            total = sum(member.file_size for member in members)
-            if total > MAX_MODEL_BYTES:
-                largest = max(members, key=lambda member: member.file_size)
-                raise ModelFileError(where, "", f"a model of at most {MAX_MODEL_BYTES // 2**20} MB unpacked; its "
-                                     f"members would unpack to {total / 2**20:,.0f} MB ({largest.filename!r}: "
-                                     f"{largest.file_size / 2**20:,.0f} MB)")
-            names = {member.filename: member for member in members}
-            if "data" not in names:
-                raise ModelFileError(where, "", "a Stable-Baselines3 model, which holds a 'data' member (this zip "
-                                     f"holds {sorted(names)[:8]})")
-            if names["data"].file_size > MAX_DATA_BYTES:
-                raise ModelFileError(where, "", f"a 'data' member of at most {MAX_DATA_BYTES // 2**20} MB",
-                                     f"{names['data'].file_size / 2**20:,.0f} MB")
-            data = json.loads(archive.read("data"))
+        archive = zipfile.ZipFile(path)
     except zipfile.BadZipFile:
         raise ModelFileError(where, "", "a model .zip written by 'emmi-gym train' (this is not a zip file)") from None
-    except (ValueError, UnicodeDecodeError) as exc:  # JSON (and its decoding) errors are ValueErrors
-        if isinstance(exc, ModelFileError):
-            raise
-        raise ModelFileError(where, "", f"a 'data' member of JSON, as Stable-Baselines3 writes it ({exc})") from None
-    except (OSError, EOFError, zipfile.LargeZipFile, NotImplementedError) as exc:
+    except (OSError, EOFError, zipfile.LargeZipFile, ValueError) as exc:
         raise ModelFileError(where, "", f"a zip file that can be read ({exc})") from None
-    module = data.get("policy_class", {}).get("__module__") if isinstance(data, dict) else None
+    try:
+        with archive:
+            names = _checked_members(archive, where)
+            damaged = archive.testzip()  # every member read (bounded above), its CRC-32 checked
+            if damaged is not None:
+                raise ModelFileError(where, damaged, "an undamaged member (its CRC-32 does not match its data: the "
+                                     "file is damaged)")
+            for name in names:
+                if name.endswith(".pth"):
+                    with archive.open(name) as member:
+                        if member.read(4) != b"PK\3\4":
+                            raise ModelFileError(where, name, "PyTorch weights as torch.save writes them (a zip "
+                                                 "archive) and Stable-Baselines3 saves them")
+            data = parse_json(archive.read("data"), where, "a 'data' member of JSON, as Stable-Baselines3 writes it",
+                              ModelFileError)
+    except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, zlib.error) as exc:
+        raise ModelFileError(where, "", f"a zip file that can be read ({type(exc).__name__}: {exc})") from None
+    policy_class = data.get("policy_class") if isinstance(data, dict) else None
+    module = policy_class.get("__module__") if isinstance(policy_class, dict) else None
     if not isinstance(module, str):
         raise ModelFileError(where, "", "a Stable-Baselines3 model, whose data names its policy class")
     if module not in _policy_modules(algorithm):
@@ -78,6 +81,27 @@ def check_model_file(path, algorithm: str) -> Path:
                              f"{algorithm}); its policy comes from {module}, "
                              f"{'a ' + ' or '.join(saved) + ' policy' if saved else 'no algorithm this package runs'}")
     return path
+
+
+def _checked_members(archive: zipfile.ZipFile, where: str) -> list[str]:
+    """The names of a model zip's members, checked in number and declared size, ``data`` among them."""
+    members = archive.infolist()
+    if len(members) > MAX_MEMBERS:
+        raise ModelFileError(where, "", f"a model zip of at most {MAX_MEMBERS} members", f"{len(members)}")
+    total = sum(member.file_size for member in members)
+    if total > MAX_MODEL_BYTES:
+        largest = max(members, key=lambda member: member.file_size)
+        raise ModelFileError(where, "", f"a model of at most {MAX_MODEL_BYTES // 2**20} MB unpacked; its members "
+                             f"would unpack to {total / 2**20:,.0f} MB ({largest.filename!r}: "
+                             f"{largest.file_size / 2**20:,.0f} MB)")
+    names = {member.filename: member for member in members}
+    if "data" not in names:
+        raise ModelFileError(where, "", "a Stable-Baselines3 model, which holds a 'data' member (this zip holds "
+                             f"{sorted(names)[:8]})")
+    if names["data"].file_size > MAX_DATA_BYTES:
+        raise ModelFileError(where, "", f"a 'data' member of at most {MAX_DATA_BYTES // 2**20} MB",
+                             f"{names['data'].file_size / 2**20:,.0f} MB")
+    return list(names)
 
 
 def load_model_file(path, algorithm: str, **kwargs):
@@ -90,6 +114,6 @@ def load_model_file(path, algorithm: str, **kwargs):
     try:
         return algorithm_for(algorithm_class(algorithm), kwargs.get("env")).load(path, **kwargs)
     except (ValueError, TypeError, KeyError, AssertionError, AttributeError, RuntimeError, EOFError,
-            zipfile.BadZipFile) as exc:
+            zipfile.BadZipFile, pickle.UnpicklingError) as exc:  # torch.load(weights_only=True) raises the last
         raise ModelFileError(str(path), "", f"a {algorithm} model that Stable-Baselines3 can load "
                              f"({type(exc).__name__}: {str(exc)[:200]})") from None

@@ -36,6 +36,7 @@ from ..experiments.loop_order import LoopOrderInfo
 from .callbacks import eval_callback_class
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument, sb3_policy_kwargs
 from .model_files import check_model_file, load_model_file
+from .records import read_training_record
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
@@ -323,9 +324,11 @@ def record_training(run_dir: Path, timesteps: int, wall_seconds: float, init_fro
 
 
 def training_record(run_dir) -> dict | None:
-    """The run folder's :data:`TRAINING_RECORD` as written by :func:`record_training`; None if it has none."""
+    """The run folder's :data:`TRAINING_RECORD` as written by :func:`record_training` (the fields it sets, checked:
+    a :class:`~emmi_gym.training.records.TrainingRecordError` naming the file and field otherwise); None if it
+    has none."""
     path = Path(run_dir) / TRAINING_RECORD
-    return (yaml.safe_load(path.read_text()) or {}) if path.is_file() else None
+    return read_training_record(path) if path.exists() else None
 
 
 def load_run_config(model_path) -> AgentConfig:
@@ -385,6 +388,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
         raise FileExistsError(f"{run_dir} already holds a trained model: use --resume or another --out")
     if init_from is not None and start is None:
         init_from = check_model_file(init_from, config.algorithm)
+    training_record(run_dir)  # a damaged record is found now, not once the model is trained
     write_run_config(config, run_dir)
 
     env = make_vec_env(config, config.n_envs, config.seed, config.vec_env, ray_address=ray_address)

@@ -1,0 +1,41 @@
+"""A run folder's ``training.yaml``: how its model was trained (decisions, wall time over every resumed part,
+date, machine, versions, the model it started from), read through the bounded YAML reader
+(:mod:`emmi_gym.inputs.yaml_files`) with its fields checked, so that a damaged or hand-edited record is a
+clear error naming the file and field, not a wrong total carried into the next part of a run."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from ..inputs.errors import FieldError
+from ..inputs.validation import Integer, Maybe, Real, Text, build, check_fields, option
+from ..inputs.yaml_files import read_yaml_file
+
+
+class TrainingRecordError(FieldError):
+    """A run folder's ``training.yaml`` is not what ``emmi-gym train`` writes; names the file and field."""
+
+
+@dataclass(frozen=True)
+class TrainingRecord:
+    """The fields of ``training.yaml`` (each optional: a record lacking one reads as its default)."""
+
+    timesteps: int = option(0, Integer(0, 2**62), "decisions the model has trained, its start's included")
+    wall_seconds: float = option(0.0, Real(0.0, math.inf), "wall time of training, summed over the run's parts")
+    finished: str | None = option(None, Maybe(Text()), "when the last part ended")
+    machine: str | None = option(None, Maybe(Text()), "the machine it trained on")
+    emmi_gym: str | None = option(None, Maybe(Text()), "the package's version")
+    torch: str | None = option(None, Maybe(Text()), "torch's version")
+    init_from: str | None = option(None, Maybe(Text()), "the model whose weights the run started from")
+
+    def __post_init__(self):
+        check_fields(self)
+
+
+def read_training_record(path) -> dict:
+    """The fields of the ``training.yaml`` at ``path`` that it sets, checked (:class:`TrainingRecord`):
+    :class:`TrainingRecordError` naming the file and field for anything else."""
+    data = read_yaml_file(path, "training record", TrainingRecordError)
+    record = build(TrainingRecord, data, "", str(path), error=TrainingRecordError)
+    return {name: value for name, value in asdict(record).items() if name in data}
