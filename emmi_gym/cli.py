@@ -180,7 +180,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .inputs.paths import output_folder
-    from .training.config import load_agent_config
+    from .training.config import ROLLOUT_WORKERS, load_agent_config
     from .training.train import set_torch_threads, train, training_torch_threads
 
     if args.out is not None:
@@ -192,8 +192,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = replace(config, total_timesteps=args.timesteps)
     if args.seed is not None:
         config = replace(config, seed=args.seed)
-    if args.ray is not None:
-        config = replace(config, vec_env="ray")
+    if args.ray is not None:  # rollout workers as Ray actors; the synchronous vector env's workers for the others
+        config = replace(config, vec_env="ray_workers" if config.vec_env in ROLLOUT_WORKERS else "ray")
     set_torch_threads(training_torch_threads(config) if args.torch_threads is None else args.torch_threads)
     out = args.out or output_folder(f"runs/{Path(args.config).stem}_seed{config.seed}")
     print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
@@ -401,11 +401,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="start from this model's weights (same algorithm, spaces and network) and train on with "
                          "this configuration; its decisions count towards the total")
     tr.add_argument("--ray", nargs="?", const="env", default=None, metavar="ADDRESS",
-                    help="run the env workers as Ray actors (vec_env: ray) on the cluster at ADDRESS ('local': a "
-                         "Ray instance on this machine; no ADDRESS: RAY_ADDRESS, else local)")
+                    help="run the env workers as Ray actors (vec_env: ray_workers, or ray for vec_env subproc and "
+                         "dummy) on the cluster at ADDRESS ('local': a Ray instance on this machine; no ADDRESS: "
+                         "RAY_ADDRESS, else local)")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
-    _torch_threads_option(tr, "1 beside env subprocesses, which need the cores; one per core when the envs "
-                              "run in this process")
+    _torch_threads_option(tr, "1 beside rollout workers and env subprocesses; one per core when the envs run "
+                              "in this process")
     tr.set_defaults(func=_cmd_train)
 
     cl = sub.add_parser("clone", help="behaviour cloning: fit a configuration's model to a scripted policy's "

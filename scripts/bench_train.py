@@ -1,73 +1,184 @@
-"""Where the wall time of ``emmi-gym train`` goes: collecting decisions, learning, evaluating.
+"""Decisions per second of ``emmi-gym train`` against what its workers could make alone, where the wall
+time goes, and the efficiency to expect on more cores.
 
-    python scripts/bench_train.py [--config agents/ppo_emmi.yaml] [--timesteps N] [--out DIR]
+    python scripts/bench_train.py [--config agents/ppo_plans_emmi.yaml] [--timesteps N] [--n-envs W]
+                                  [--vec-env workers|subproc|dummy] [--single N] [--out DIR]
 
-Trains the configuration exactly as ``emmi-gym train`` does (same envs, vectorisation,
-threads, callbacks) into ``--out`` (a temporary folder by default), timing in this process:
-the algorithm's rollout collection (the env workers' steps and resets as the learner waits for
-them), the periodic held-out evaluation (its episodes run in this process, inside the
-collection), the gradient updates, and the rest of ``learn`` (checkpoints, logging). Prints each part's
-seconds and share of the wall time, and the decisions collected per second.
+1. **One worker alone**: a rollout worker in a process of its own (kernels and torch on one thread,
+   as in training) plays the first ``--single`` decisions (default ``n_steps``) of each env of
+   the run with the model's initial weights, one env after another, one decision at a time, resets
+   included; each decision's wall time is kept. These are the very decisions the workers play
+   first in training (the same seeds, weights and sampling generators: with ``--timesteps`` =
+   ``n_envs x n_steps``, all of them), so the single-thread decisions/s is that of the same work.
+2. **Training**, exactly as ``emmi-gym train`` does (same envs, vectorisation, threads, callbacks),
+   ``--timesteps`` decisions into ``--out`` (a temporary folder by default). It times the waits for
+   the envs (the rollout workers' fragments, or a synchronous vector env's steps and resets), the
+   algorithm's ``train()`` (the update), the periodic evaluation and the rest. The decisions/s of
+   training (the update included) is compared with ``W x`` the single-thread decisions/s
+   (``W`` = ``n_envs``): the efficiency. The learner's share is the wall time not spent waiting
+   for the envs (the update, the replay of the fragments into the buffer, checkpoints, logging).
+3. **Predicted efficiency** at ``W`` = ``n_envs``, 16 and 64 workers, from the measured decision
+   times ``t`` (mean ``m``) and the learner's measured seconds per decision ``u``:
+
+   - rollout workers (one wait per fragment): each of the ``W`` workers plays ``n = n_steps``
+     decisions, taking ``T_k`` (a sum of ``n`` decision times), and the learner then updates
+     on the ``W n`` decisions, taking ``u W n``::
+
+         efficiency(W) = n m / (E[max_k T_k] + u W n)
+
+   - a synchronous vector env (one wait per decision): every step waits for the slowest of
+     ``W`` decisions, and the learner's share is the same ``u`` per decision::
+
+         efficiency(W) = m / (E[max_k t_k] + u W)
+
+   ``E[max]`` is estimated by drawing the ``t`` (resampling the measured times, 2000 draws). A
+   decision's time is heavy-tailed (a waypoint drive is 10 ms to a second): the maximum of ``W``
+   single decisions grows quickly with ``W``, the maximum of ``W`` sums of ``n`` decisions barely.
+   The learner's update grows with ``W`` (its batch is ``W n`` decisions) while a fragment's time
+   does not, so ``u W`` must stay well under ``m``: each model is printed with ``u`` as measured
+   on this machine (the update on its cores) and with ``u = 0`` (a learner whose update does not
+   hold up the workers, such as one on a GPU).
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import tempfile
 import time
 from collections import defaultdict
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
+import numpy as np
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+from emmi_gym.concurrency.parallel import ProcessActor
 from emmi_gym.training import callbacks
 from emmi_gym.training.config import algorithm_class, load_agent_config
-from emmi_gym.training.train import set_torch_threads, train, training_torch_threads
+from emmi_gym.training.rollout_workers import RolloutWorker, RolloutWorkers, acting_of, is_masked
+from emmi_gym.training.train import make_env, model_of, set_torch_threads, train, training_torch_threads
+
+from _timing import call_seconds
 
 SPENT: dict = defaultdict(float)
+EVALUATING: list = []  # True while the periodic evaluation plays (its env's steps are not the training's)
+#: Worker counts the efficiency is predicted for (besides the run's own).
+PREDICTED_WORKERS = (16, 64)
 
 
-def timed(cls, name: str, key: str, when=lambda self: True) -> None:
-    """Add the wall time of every call of ``cls.name`` (for which ``when(self)`` holds) to ``SPENT[key]``."""
+def timed(cls, name: str, key: str, when=lambda self: True, marks: list | None = None) -> None:
+    """Add the wall time of every call of ``cls.name`` (for which ``when(self)`` holds) to ``SPENT[key]``;
+    ``marks`` holds True during such calls."""
     original = getattr(cls, name)
 
     def wrapper(self, *args, **kwargs):
         if not when(self):
             return original(self, *args, **kwargs)
+        if marks is not None:
+            marks.append(True)
         t0 = time.perf_counter()
         try:
             return original(self, *args, **kwargs)
         finally:
             SPENT[key] += time.perf_counter() - t0
+            if marks is not None:
+                marks.clear()
 
     setattr(cls, name, wrapper)
 
 
+def single_thread_decision_seconds(config, decisions: int) -> np.ndarray:
+    """The wall time of each decision of one rollout worker playing alone (see the docstring): the first
+    ``decisions`` of every env of the run, one env after another."""
+    env_fn = partial(make_env, config.env_id, config.env_kwargs)
+    model = model_of(config, DummyVecEnv([env_fn]))  # the initial weights of the run's model (same seed)
+    weights, acting = model.policy.state_dict(), acting_of(model, is_masked(model))
+    times = []
+    for rank in range(config.n_envs):
+        worker = ProcessActor(f"worker {rank} alone", RolloutWorker, env_fn, range(rank, rank + 1), config.seed)
+        try:
+            worker.submit("set_policy", copy.deepcopy(model.policy).to("cpu"), acting)
+            worker.submit("reset")
+            worker.result()
+
+            def decide():
+                worker.submit("play", weights, 1)
+                worker.result()
+
+            times.append(call_seconds(decide, decisions, warmup=0))
+        finally:
+            worker.close(5.0)
+    return np.concatenate(times)
+
+
+def expected_max(times: np.ndarray, workers: int, steps: int, rng, draws: int = 2000) -> float:
+    """E[max over ``workers`` of a sum of ``steps`` decision times], the times drawn from ``times``."""
+    sums = np.zeros((draws, workers))
+    for _ in range(steps):
+        sums += rng.choice(times, size=(draws, workers))
+    return float(sums.max(axis=1).mean())
+
+
+def predicted_efficiency(times: np.ndarray, workers: int, n_steps: int, learner_per_decision: float) -> dict:
+    """The efficiency models of the module docstring at ``workers`` workers."""
+    rng, m, u = np.random.default_rng(0), float(times.mean()), learner_per_decision
+    return {"rollout workers": n_steps * m / (expected_max(times, workers, n_steps, rng) + u * workers * n_steps),
+            "synchronous vector env": m / (expected_max(times, workers, 1, rng) + u * workers)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="agents/ppo_emmi.yaml")
+    parser.add_argument("--config", default="agents/ppo_plans_emmi.yaml")
     parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
+    parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    parser.add_argument("--vec-env", default=None, help="override vec_env")
+    parser.add_argument("--single", type=int, default=None,
+                        help="decisions per env of the worker playing alone (default n_steps: the first fragments)")
     parser.add_argument("--out", default=None, help="run folder (default: a temporary one, removed after)")
     args = parser.parse_args()
     config = load_agent_config(args.config)
-    if args.timesteps is not None:
-        config = replace(config, total_timesteps=args.timesteps)
+    overrides = {"total_timesteps": args.timesteps, "n_envs": args.n_envs, "vec_env": args.vec_env}
+    config = replace(config, **{k: v for k, v in overrides.items() if v is not None})
+
+    n_steps = config.hyperparameters.get("n_steps", 2048)
+    single = single_thread_decision_seconds(config, args.single or n_steps)
+    single_rate = 1.0 / single.mean()
+
     set_torch_threads(training_torch_threads(config))  # as emmi-gym train: the same network as it trains
     cls = algorithm_class(config.algorithm)
-    timed(cls, "collect_rollouts", "collection")
     timed(cls, "train", "learning")
-    timed(callbacks.GroundTruthEvalMixin, "_on_step", "evaluation",
+    for vec_cls, method in ((RolloutWorkers, "play"), (RolloutWorkers, "reset"), (SubprocVecEnv, "step_wait"),
+                            (SubprocVecEnv, "reset"), (DummyVecEnv, "step_wait"), (DummyVecEnv, "reset")):
+        timed(vec_cls, method, "waiting for the envs", when=lambda env: not EVALUATING)
+    timed(callbacks.GroundTruthEvalMixin, "_on_step", "evaluation", marks=EVALUATING,
           when=lambda cb: cb.eval_freq > 0 and cb.n_calls % cb.eval_freq == 0)  # as the callback decides
     with tempfile.TemporaryDirectory() as scratch:
         result = train(config, Path(args.out or scratch) / "run", progress=False)
-        wall = result.wall_seconds
-    parts = {"collection (less evaluation)": SPENT["collection"] - SPENT["evaluation"],
-             "evaluation": SPENT["evaluation"], "learning": SPENT["learning"]}
-    parts["other"] = max(0.0, wall - sum(parts.values()))
-    print(f"{config.algorithm} on {config.env_id}, {config.n_envs} env(s) ({config.vec_env}), "
-          f"{result.timesteps} decisions in {wall:.0f} s: "
-          f"{result.timesteps / (SPENT['collection'] - SPENT['evaluation']):.1f} collected per second")
+    wall, decisions, workers = result.wall_seconds, result.timesteps, config.n_envs
+    waiting = SPENT["waiting for the envs"]
+    rate = decisions / wall
+    print(f"{config.algorithm} on {config.env_id}, {workers} env(s) ({config.vec_env}), {decisions} decisions "
+          f"in {wall:.1f} s: {rate:.2f} decisions/s")
+    print(f"  one worker alone: {single_rate:.2f} decisions/s ({len(single)} decisions; per decision median "
+          f"{np.median(single):.3f} s, p90 {np.quantile(single, 0.9):.3f} s, max {single.max():.3f} s)")
+    print(f"  efficiency: {rate:.2f} / ({workers} x {single_rate:.2f}) = {100 * rate / (workers * single_rate):.0f}%")
+    parts = {"waiting for the envs": waiting, "evaluation": SPENT["evaluation"],
+             "learning (train())": SPENT["learning"]}
+    parts["other (the learner's replay, checkpoints, logging)"] = max(0.0, wall - sum(parts.values()))
     for name, seconds in parts.items():
         print(f"  {name}: {seconds:.1f} s ({100 * seconds / wall:.0f}%)")
+    learner = wall - waiting
+    update = (learner - SPENT["evaluation"]) / decisions  # the evaluation is a schedule's choice (eval.freq 0)
+    print(f"  the learner's share of the wall time: {100 * learner / wall:.0f}% "
+          f"({1000 * update:.1f} ms per decision less the evaluation)")
+    print(f"  predicted efficiency (n_steps {n_steps}), with the learner as measured ({1000 * update:.1f} ms per "
+          f"decision) / with a learner that does not hold up the workers (a GPU's update):")
+    for count in sorted({workers, *PREDICTED_WORKERS}):
+        measured, free = (predicted_efficiency(single, count, n_steps, u) for u in (update, 0.0))
+        print(f"    {count:3d} workers: " + ", ".join(f"{name} {100 * measured[name]:.0f}% / {100 * free[name]:.0f}%"
+                                                 for name in measured))
 
 
 if __name__ == "__main__":

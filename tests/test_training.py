@@ -114,8 +114,9 @@ def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     assert record["wall_seconds"] == pytest.approx(stopped.wall_seconds + finished.wall_seconds, abs=0.5)
 
 
-@pytest.mark.parametrize("whole_group", [False, True], ids=["kill -INT main process", "Ctrl-C (process group)"])
-def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, tmp_path):
+@pytest.mark.parametrize("whole_group, vec_env", [(False, "subproc"), (True, "subproc"), (True, "workers")],
+                         ids=["kill -INT main process", "Ctrl-C (process group)", "Ctrl-C, rollout workers"])
+def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, vec_env, tmp_path):
     import signal
     import subprocess
     import sys
@@ -123,7 +124,7 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
     import zipfile
 
     data = config_dict("PPO", hyper={"n_steps": 16, "batch_size": 32, "n_epochs": 1}, timesteps=100_000,
-                       n_envs=2, vec_env="subproc", checkpoint_freq=32)
+                       n_envs=2, vec_env=vec_env, checkpoint_freq=32)
     (tmp_path / "agent.yaml").write_text(yaml.safe_dump(data))
     run = tmp_path / "run"
     # a shell runs background jobs with SIGINT ignored, and a child inherits an ignored signal: start it while
@@ -288,7 +289,8 @@ def test_resume_skips_a_checkpoint_cut_short_by_a_kill(tmp_path):
 
 def test_training_torch_threads_leave_the_cores_to_env_subprocesses_only():
     cores = os.cpu_count() or 1
-    assert training_torch_threads(load_agent_config("agents/ppo_emmi.yaml")) == 1           # 4 subprocesses
+    assert training_torch_threads(parse_agent_config(config_dict("PPO", n_envs=2, vec_env="subproc"))) == 1
+    assert training_torch_threads(load_agent_config("agents/ppo_emmi.yaml")) == 1           # 4 rollout workers
     assert training_torch_threads(load_agent_config("agents/sac_velocity_emmi.yaml")) == cores  # in process
     one_subprocess = parse_agent_config(config_dict("PPO", n_envs=1, vec_env="subproc"))  # runs in this process
     assert training_torch_threads(one_subprocess) == cores
@@ -324,7 +326,7 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
     ({"hyperparameters": {"normalize_advantage": "yes"}}, "hyperparameters.normalize_advantage", "true or false"),
     ({"n_envs": 0}, "n_envs", "an integer in [1, 64]"),
     ({"n_envs": 100000}, "n_envs", "an integer in [1, 64]"),
-    ({"vec_env": "slurm"}, "vec_env", "one of ['subproc', 'dummy', 'ray']"),
+    ({"vec_env": "slurm"}, "vec_env", "one of ['workers', 'ray_workers', 'subproc', 'dummy', 'ray']"),
     ({"eval": {"freq": -1}}, "eval.freq", "an integer in [0, "),
     ({"eval": {"every": 3}}, "eval.every", "one of the known options ['freq', 'episodes', 'seed', 'env_kwargs']"),
     ({"eval": {"env_kwargs": {"rewad": "emmi"}}}, "eval.env_kwargs.rewad", "one of the known options"),

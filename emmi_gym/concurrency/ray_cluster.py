@@ -1,5 +1,5 @@
 """Connecting to Ray (https://www.ray.io), the distributed engine that spreads work over a cluster:
-benchmark jobs as Ray tasks, training envs as Ray actors."""
+benchmark jobs as Ray tasks, training envs and rollout workers as Ray actors."""
 
 from __future__ import annotations
 
@@ -20,3 +20,37 @@ def connect_ray(address: str | None = LOCAL):
     ray.init(address=None if address in (None, LOCAL) else address, include_dashboard=False,
              logging_level="ERROR", log_to_driver=False)
     return ray, True
+
+
+class RayActor:
+    """An object built by ``factory(*args)`` in a Ray actor (one CPU) with the calls of
+    :class:`emmi_gym.concurrency.parallel.ProcessActor`: :meth:`submit` a method, read its :meth:`result`
+    (what the actor raised, raised here as :class:`~emmi_gym.concurrency.parallel.ActorFailed` naming it),
+    :meth:`close`. Arguments may be Ray object references (``ray.put``), which the actor receives resolved."""
+
+    def __init__(self, ray, name: str, factory, *args):
+        self._ray, self.name = ray, name
+        self.actor = ray.remote(num_cpus=1)(factory).remote(*args)
+        self._reply = None
+
+    def submit(self, method: str, *args) -> None:
+        self._reply = getattr(self.actor, method).remote(*args)
+
+    def result(self):
+        from .parallel import ActorFailed
+
+        reply, self._reply = self._reply, None
+        try:
+            return self._ray.get(reply)
+        except self._ray.exceptions.RayError as error:
+            cause = getattr(error, "cause", None) or error
+            raise ActorFailed(f"{self.name}: {type(cause).__name__}: {str(cause).strip().splitlines()[-1]}") from None
+
+    def ask_to_close(self) -> None:
+        """Nothing to ask: :meth:`close` ends the actor."""
+
+    def close(self, timeout: float) -> None:
+        """End the actor, after the call under way if it ends within ``timeout`` seconds."""
+        if self._reply is not None:
+            self._ray.wait([self._reply], timeout=timeout)
+        self._ray.kill(self.actor)

@@ -37,7 +37,13 @@ from ..inputs.yaml_files import YAML_SUFFIXES, read_yaml_file
 #: The algorithms a configuration may name: Stable-Baselines3's and sb3-contrib's classes.
 ALGORITHMS = ("PPO", "A2C", "MaskablePPO", "DQN", "SAC")
 POLICIES = ("MultiInputPolicy", "CnnPolicy", "MlpPolicy", "TargetScoringPolicy")
-VEC_ENVS = ("subproc", "dummy", "ray")
+#: How the envs run: rollout workers in local processes or Ray actors (on-policy algorithms; see
+#: :mod:`emmi_gym.training.rollout_workers`), or Stable-Baselines3's synchronous vector envs: subprocesses, this
+#: process, or subprocesses' worker loops in Ray actors (:mod:`emmi_gym.training.ray_vec_env`).
+VEC_ENVS = ("workers", "ray_workers", "subproc", "dummy", "ray")
+ROLLOUT_WORKERS = ("workers", "ray_workers")
+#: The algorithms that learn from rollouts (collected by rollout workers by default).
+ON_POLICY = ("PPO", "A2C", "MaskablePPO")
 _KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "discount_unit", "n_envs", "vec_env",
          "total_timesteps", "seed", "eval", "checkpoint_freq")
 
@@ -349,6 +355,18 @@ def _check_env(source: str, config: AgentConfig) -> None:
                                    f"{spaces[0]}, {spaces[1]}")
 
 
+def _vec_env(source: str, algorithm: str, value) -> str:
+    """The ``vec_env`` field: rollout workers by default for the on-policy algorithms, subprocesses for the others
+    (whose updates come between single steps)."""
+    if value is None:
+        return "workers" if algorithm in ON_POLICY else "subproc"
+    value = check_value(value, Choice(VEC_ENVS), source, "vec_env", AgentConfigError)
+    if value in ROLLOUT_WORKERS and algorithm not in ON_POLICY:
+        raise AgentConfigError(source, "vec_env", f"one of {[v for v in VEC_ENVS if v not in ROLLOUT_WORKERS]} for "
+                               f"{algorithm} (rollout workers collect for {list(ON_POLICY)})", value)
+    return value
+
+
 def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
     """Check a whole configuration given as a dict (as read from YAML), making its env once, and resolve it."""
     from ..env import ENV_IDS
@@ -386,7 +404,8 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
         env_id=env_id, env_kwargs=dict(kwargs), algorithm=algorithm, policy=policy, hyperparameters=hyper,
         discount_unit=discount_unit, n_envs=field("n_envs", Integer(1, MAX_ENVS, "each env is a process with its "
                                                                     "own filter, 100-300 MB"), default_n_envs()),
-        vec_env=field("vec_env", Choice(VEC_ENVS), "subproc"), total_timesteps=field("total_timesteps", _STEPS, 20_000),
+        vec_env=_vec_env(source, algorithm, data.get("vec_env")),
+        total_timesteps=field("total_timesteps", _STEPS, 20_000),
         seed=field("seed", Integer(0, 2**32 - 1), 0), eval=eval_schedule,
         checkpoint_freq=field("checkpoint_freq", _STEPS, 5000), source=source)
     _check_env(source, config)

@@ -58,9 +58,11 @@ DEFAULT_TORCH_THREADS = 1
 
 
 def training_torch_threads(config: AgentConfig) -> int:
-    """torch threads for training ``config``: :data:`DEFAULT_TORCH_THREADS` beside env subprocesses, one
-    per core when the envs run in this process (the learner and the envs then take turns, never
-    competing for the cores)."""
+    """torch threads for training ``config``: :data:`DEFAULT_TORCH_THREADS` beside env subprocesses and
+    rollout workers, one per core when the envs run in this process (the learner and the envs then take
+    turns, never competing for the cores). Rollout workers wait while the learner updates, but an update
+    of the waypoint agents on two threads took 2-10 times as long as on one (256 decisions of
+    ``ppo_plans_emmi.yaml``, 2-core VM)."""
     return DEFAULT_TORCH_THREADS if _subprocesses(config.n_envs, config.vec_env) else max(1, os.cpu_count() or 1)
 
 
@@ -90,13 +92,19 @@ def make_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_w
 
 def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, evaluation: bool = False,
                  ray_address: str | None = None):
-    """SB3 vectorised envs (Monitor-wrapped): subprocesses when asked and there is more than one env, Ray
-    actors with ``vec_env="ray"`` (on the cluster at ``ray_address``; ``None``: ``RAY_ADDRESS``, else a
+    """SB3 vectorised envs (Monitor-wrapped): rollout workers (``vec_env="workers"``: local processes,
+    ``"ray_workers"``: Ray actors) or subprocesses when asked and there is more than one env, Ray
+    actors with ``vec_env="ray"`` (Ray on the cluster at ``ray_address``; ``None``: ``RAY_ADDRESS``, else a
     local instance); with ``evaluation``, envs made with the held-out evaluation's keywords
     (``eval.env_kwargs``)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
 
     kwargs = config.eval_env_kwargs if evaluation else config.env_kwargs
+    if _rollout_workers(n_envs, vec_env):
+        from .rollout_workers import RolloutWorkers
+
+        return RolloutWorkers(partial(make_env, config.env_id, kwargs, vec_worker=True), n_envs, seed,
+                              on_ray=vec_env == "ray_workers", ray_address=ray_address)
     if vec_env == "ray":
         from .ray_vec_env import RayVecEnv
 
@@ -109,7 +117,12 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, e
 
 def _subprocesses(n_envs: int, vec_env: str) -> bool:
     """Whether :func:`make_vec_env` runs the envs in other processes (subprocesses or Ray actors)."""
-    return vec_env == "ray" or (vec_env == "subproc" and n_envs > 1)
+    return vec_env in ("ray", "ray_workers") or (vec_env in ("subproc", "workers") and n_envs > 1)
+
+
+def _rollout_workers(n_envs: int, vec_env: str) -> bool:
+    """Whether :func:`make_vec_env` runs the envs in rollout workers (one env in this process needs none)."""
+    return vec_env == "ray_workers" or (vec_env == "workers" and n_envs > 1)
 
 
 def _handles_ctrl_c() -> bool:
@@ -349,8 +362,11 @@ def sb3_hyperparameters(config: AgentConfig, env) -> dict:
 
 def model_of(config: AgentConfig, env, **kwargs):
     """A fresh SB3 model of ``config`` (algorithm, policy, hyperparameters, seed) on ``env``; ``kwargs`` to SB3."""
-    return algorithm_class(config.algorithm)(policy_argument(config.policy), env, seed=config.seed,
-                                             **kwargs, **sb3_hyperparameters(config, env))
+    from .rollout_workers import algorithm_for
+
+    return algorithm_for(algorithm_class(config.algorithm), env)(policy_argument(config.policy), env,
+                                                                 seed=config.seed, **kwargs,
+                                                                 **sb3_hyperparameters(config, env))
 
 
 def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool = True,

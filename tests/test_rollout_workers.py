@@ -1,0 +1,198 @@
+"""Rollout workers: the buffer the learner fills from their fragments is the one SB3 collects for the same
+actions; processes, a local Ray instance and a two-node Ray cluster give the same rollouts for the same
+seeds; training with them saves, resumes, starts from another model and stops on Ctrl-C as before."""
+
+import copy
+
+import numpy as np
+import pytest
+import torch as th
+import yaml
+from stable_baselines3.common.callbacks import BaseCallback
+
+from emmi_gym.concurrency.parallel import ActorFailed
+from emmi_gym.training.config import AgentConfigError, parse_agent_config
+from emmi_gym.training.evaluate import evaluate_model
+from emmi_gym.training.rollout_workers import RolloutWorkers
+from emmi_gym.training.semi_markov import SemiMarkovDiscounts
+from emmi_gym.training.train import latest_checkpoint, make_vec_env, model_of, train
+
+#: A waypoint agent with masks and semi-Markov discounts, whose 3-decision episodes end within a rollout.
+MASKED = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3, "max_decisions": 3}},
+          "algorithm": "MaskablePPO", "discount_unit": 100,
+          "hyperparameters": {"n_steps": 6, "batch_size": 6, "n_epochs": 1, "policy_kwargs": {"net_arch": [16]}}}
+#: A velocity agent (Box actions, clipped for the env) whose 40-step episodes are truncated within a rollout.
+VELOCITY = {"env": {"id": "emmi_gym/ExploreVelocity-v0",
+                    "kwargs": {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 40}},
+            "algorithm": "PPO", "hyperparameters": {"n_steps": 24, "batch_size": 24, "n_epochs": 1,
+                                                    "policy_kwargs": {"net_arch": [16]}}}
+FIELDS = ("observations", "actions", "rewards", "episode_starts", "values", "log_probs", "advantages", "returns",
+          "action_masks", "discounts")
+
+
+def agent(base: dict, **extra) -> dict:
+    return {**base, "policy": "MultiInputPolicy", "n_envs": 2, "total_timesteps": 10**6, "seed": 7,
+            "eval": {"freq": 0}, "checkpoint_freq": 10**6, **extra}
+
+
+class Buffers(BaseCallback):
+    """A copy of the rollout buffer's entries at the end of each rollout (before the update reads it)."""
+
+    def __init__(self):
+        super().__init__()
+        self.rollouts = []
+
+    def _on_rollout_end(self) -> None:
+        buffer = self.model.rollout_buffer
+        entries = {}
+        for name in FIELDS:
+            value = getattr(buffer, name, None)
+            if value is not None:
+                entries[name] = copy.deepcopy(value)
+        self.rollouts.append(entries)
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def collect(data: dict, vec_env: str, rollouts: int, *, ray_address=None, model_hook=None):
+    """The buffers of ``rollouts`` rollouts (with an update after each) of a model of ``data`` on ``vec_env``,
+    and its initial weights."""
+    config = parse_agent_config(data)
+    env = make_vec_env(config, config.n_envs, config.seed, vec_env, ray_address=ray_address)
+    try:
+        model = model_of(config, env)
+        initial = copy.deepcopy(model.policy.state_dict())
+        if model_hook is not None:
+            model_hook(model)
+        buffers = Buffers()
+        callbacks = [buffers] + ([SemiMarkovDiscounts(config.discount_unit)] if config.discount_unit else [])
+        model.learn(rollouts * model.n_steps * config.n_envs, callback=callbacks)
+    finally:
+        env.close()
+    return initial, buffers.rollouts
+
+
+def replaying(initial: dict, rollouts: list):
+    """A hook that gives a model ``initial`` weights and makes its policy act as recorded in ``rollouts``: the
+    recorded actions, their log-probability and the value, as SB3's forward pass returns them."""
+    actions = iter(step for rollout in rollouts for step in rollout["actions"])
+
+    def hook(model):
+        policy = model.policy
+        policy.load_state_dict(initial)
+
+        def forward(obs, deterministic=False, **masks):
+            taken = th.as_tensor(next(actions)).reshape(-1, *model.action_space.shape)
+            return taken, policy.predict_values(obs), policy.get_distribution(obs, **masks).log_prob(taken)
+
+        policy.forward = forward
+
+    return hook
+
+
+@pytest.mark.parametrize("base", [MASKED, VELOCITY], ids=["MaskablePPO, masks, semi-Markov", "PPO, Box actions"])
+def test_the_learner_fills_the_buffer_sb3_collects_for_the_same_actions(base):
+    initial, from_workers = collect(agent(base), "workers", 2)
+    _, from_sb3 = collect(agent(base), "dummy", 2, model_hook=replaying(initial, from_workers))
+    ends = sum(int(rollout["episode_starts"][1:].sum()) for rollout in from_workers)
+    assert ends >= 2  # episodes ended and were reset within the rollouts (a truncation bootstrapped)
+    for ours, sb3 in zip(from_workers, from_sb3, strict=True):
+        assert set(ours) == set(sb3)
+        for name in ("observations", "actions", "episode_starts", "action_masks"):
+            if name in ours:
+                np.testing.assert_array_equal(_arrays(ours[name]), _arrays(sb3[name]), err_msg=name)
+        for name in ("rewards", "values", "log_probs", "advantages", "returns", "discounts"):
+            if name in ours:
+                np.testing.assert_allclose(ours[name], sb3[name], rtol=1e-5, atol=1e-6, err_msg=name)
+
+
+def _arrays(value):
+    return np.concatenate([v.ravel() for v in value.values()]) if isinstance(value, dict) else value
+
+
+def same_rollouts(a: list, b: list) -> None:
+    for first, second in zip(a, b, strict=True):
+        for name in first:
+            np.testing.assert_array_equal(_arrays(first[name]), _arrays(second[name]), err_msg=name)
+
+
+@pytest.fixture
+def ray():
+    ray = pytest.importorskip("ray")
+    yield ray
+    ray.shutdown()
+
+
+def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray):
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    same_rollouts(collect(agent(MASKED), "workers", 2)[1], collect(agent(MASKED), "ray_workers", 2)[1])
+
+
+def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray):
+    """Two nodes of one CPU each, as Ray's own tests make a cluster on one machine: the two workers (one CPU
+    each) can only run one on each node."""
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    try:
+        cluster.add_node(num_cpus=1)
+        ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
+        busy = []
+
+        def cpus_in_use(model):
+            model.env.get_attr("decisions")  # both workers answer: both started
+            busy.append(ray.cluster_resources()["CPU"] - ray.available_resources().get("CPU", 0.0))
+
+        on_cluster = collect(agent(MASKED), "ray_workers", 2, ray_address=cluster.address, model_hook=cpus_in_use)[1]
+        assert len([node for node in ray.nodes() if node["Alive"]]) == 2 and busy == [2.0]  # a worker on each
+        same_rollouts(collect(agent(MASKED), "workers", 2)[1], on_cluster)
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+
+
+def test_a_worker_that_stops_is_an_error_naming_it_not_a_hang():
+    config = parse_agent_config(agent(VELOCITY))
+    workers = make_vec_env(config, 2, 0, "workers")
+    try:
+        assert isinstance(workers, RolloutWorkers) and len(workers.reset()["pose"]) == 2
+        workers.workers[1].process.kill()
+        with pytest.raises(ActorFailed, match="rollout worker 1: the process has stopped"):
+            workers.get_attr("decisions")
+    finally:
+        workers.close()
+
+
+def test_training_with_workers_stops_on_ctrl_c_resumes_and_starts_from_another_model(tmp_path, monkeypatch):
+    from sb3_contrib import MaskablePPO
+
+    from test_training import interrupt_training_at
+
+    data = agent(MASKED, total_timesteps=36, checkpoint_freq=12)
+    run_on = interrupt_training_at(monkeypatch, 24)
+    stopped = train(parse_agent_config(data), tmp_path / "run", progress=False)
+    assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path / "run")
+    run_on()
+    finished = train(parse_agent_config(data), tmp_path / "run", resume=True, progress=False)
+    assert finished.timesteps >= 36 and type(MaskablePPO.load(finished.model_path)) is MaskablePPO
+    assert yaml.safe_load((tmp_path / "run" / "training.yaml").read_text())["timesteps"] == finished.timesteps
+    more = train(parse_agent_config(dict(data, total_timesteps=48)), tmp_path / "more", progress=False,
+                 init_from=finished.model_path)
+    assert more.timesteps >= 48 and len(evaluate_model(more.model_path, episodes=1)) == 1
+
+
+@pytest.mark.parametrize("change, expected", [
+    ({}, "workers"),
+    ({"algorithm": "DQN", "hyperparameters": {}, "discount_unit": None}, "subproc"),
+])
+def test_on_policy_algorithms_use_rollout_workers_by_default(change, expected):
+    assert parse_agent_config({**agent(MASKED), **change}).vec_env == expected
+
+
+def test_rollout_workers_for_an_off_policy_algorithm_are_a_clear_error():
+    with pytest.raises(AgentConfigError, match="rollout workers collect for") as error:
+        parse_agent_config({**agent(MASKED), "algorithm": "DQN", "hyperparameters": {}, "discount_unit": None,
+                            "vec_env": "workers"},
+                           source="agent.yaml")
+    assert error.value.field == "vec_env"
