@@ -226,7 +226,7 @@ def test_async_vector_env_and_sb3_subproc_spawn():
     (dict(world=None, generator={"wall_thickness": float("nan")}), r"field 'generator.wall_thickness': .*, got nan"),
     # sizes: bounded before anything is allocated
     (dict(particles=10**9), r"field 'particles': expected an integer in \[1, 1000\] \(each particle holds a whole map\)"),
-    (dict(obs_size=10**6), r"field 'obs_size': expected an integer in \[16, 1024\]"),
+    (dict(obs_size=10**6), r"field 'obs_size': expected an integer in \[36, 256\]"),
     (dict(n_frontiers=10**7), r"field 'n_frontiers': expected an integer in \[1, 64\]"),
     (dict(world=None, generator={"nx": 10**4}), r"field 'generator.nx': expected an integer in \[2, 20\]"),
     (dict(world=None, generator={"spacing": 1e6}), r"field 'generator.spacing': expected a finite number in \[1.6, 50\] m"),

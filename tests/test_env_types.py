@@ -74,13 +74,13 @@ def test_discrete_velocity_action_space_and_commands():
 
 @pytest.mark.parametrize("action_mode, n_slots", [("waypoint", 8), ("velocity", 0)])
 def test_dict_observation_space_has_targets_only_with_target_slots(action_mode, n_slots):
-    env = make(action_mode=action_mode, obs_size=32)
+    env = make(action_mode=action_mode, obs_size=36)
     assert isinstance(env.observation_type, DictObservation)
     space = env.observation_type.space()
     assert space == env.observation_space
     keys = {"map", "pose", "certainty"} | ({"targets"} if n_slots else set())
     assert set(space.spaces) == keys
-    assert space["map"] == spaces.Box(0, 255, (2, 32, 32), dtype=np.uint8)
+    assert space["map"] == spaces.Box(0, 255, (2, 36, 36), dtype=np.uint8)
     assert space["pose"] == spaces.Box(-1.0, 1.0, (4,), dtype=np.float32)
     assert space["certainty"] == spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
     if n_slots:

@@ -32,6 +32,9 @@ OBSERVATIONS = ("dict", "image")
 STARTS = ("decision", "start")
 #: Where the options come from, in error messages.
 SOURCE = "gym.make"
+#: The observation's image side, pixels: the least that the policies' map encoder (SB3's NatureCNN, kernels
+#: 8/4/3 with strides 4/2/1) takes, and a most at which its last layer stays within tens of millions of weights.
+MIN_OBS_SIZE, MAX_OBS_SIZE = 36, 256
 
 #: Reward scales: each turns its measure's typical change over one macro-action into O(0.1-1).
 #: EMMI lies in [0, 1] bits/cell and moves by 0.01-0.1 per macro-action; the pose entropy
@@ -120,7 +123,8 @@ class EnvConfig:
     observation: str = option(
         "dict", Choice(OBSERVATIONS),
         help="'dict': map, pose, certainty (and targets in waypoint mode); 'image': the map image alone")
-    obs_size: int = option(64, Integer(16, 1024, "the observation holds obs_size^2 pixels per channel"),
+    obs_size: int = option(64, Integer(MIN_OBS_SIZE, MAX_OBS_SIZE, "the policies' CNN (NatureCNN) needs 36 pixels; "
+                                                                     "at 256 its last layer holds 26 M weights"),
                            help="side of the observation's map image, pixels")
     egocentric: bool = option(False, Boolean(),
                               help="the image shows a square round the estimated pose instead of the whole world")
