@@ -16,11 +16,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import gymnasium as gym
 import numpy as np
 
 from ..concurrency.parallel import run_in_processes
+from ..inputs.paths import write_atomically
 from ..policies import make_policy
 from ..world.map_sets import map_set_files
 from .episodes import PolicyActor, summarise
@@ -215,7 +217,7 @@ def plot_pair(rows: list[dict], path) -> None:
     fig.suptitle(f"{rows[0]['plan']}, seed {rows[0]['seed']}: the expected map at the end of each policy's episode",
                  fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomically(path, partial(fig.savefig, dpi=110))
     plt.close(fig)
 
 
@@ -243,5 +245,5 @@ def plot_front(rows: list[dict], path, qualities=("oracle_accuracy", "ate"), tim
     fig.suptitle(f"map quality against robot time, {len(rows) // max(len(policies), 1)} episodes per policy "
                  f"(mean, 95% intervals)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomically(path, partial(fig.savefig, dpi=110))
     plt.close(fig)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +12,11 @@ import numpy as np
 from ..formats import carmen
 from ..geometry.grid import GridGeometry
 from ..geometry.motion import compose_motion
+from ..inputs.paths import write_atomically
 from ..scoring.scores import absolute_trajectory_error
 from ..slam.config import RBPFConfig
 from ..slam.rbpf import RBPF, UpdateMetrics
+from .report import write_csv
 
 
 @dataclass
@@ -234,7 +236,7 @@ def write_map_png(result: ReplayResult, path, grid: np.ndarray | None = None, ti
     ax.set_ylabel("y (m)")
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomically(path, partial(fig.savefig, dpi=110))
     plt.close(fig)
     return Path(path)
 
@@ -251,10 +253,7 @@ def write_outputs(result: ReplayResult, out_dir) -> dict[str, Path]:
     out.mkdir(parents=True, exist_ok=True)
     paths = {name: out / name for name in ("metrics.csv", "metrics.png", "expected_map.png", "best_map.png")}
     rows = [r.as_row() for r in result.rows]
-    with paths["metrics.csv"].open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(paths["metrics.csv"], rows)
 
     steps = [r.step for r in result.rows]
     panels = [("emmi", "EMMI (bits/cell)"), ("mean_information_best", "MI of best map (bits/cell)"),
@@ -271,7 +270,7 @@ def write_outputs(result: ReplayResult, out_dir) -> dict[str, Path]:
                 ax.axvline(r.step, color="tab:red", lw=0.5, alpha=0.4)
     axes[-1].set_xlabel("RBPF update (red lines: resampling)")
     fig.tight_layout()
-    fig.savefig(paths["metrics.png"], dpi=110)
+    write_atomically(paths["metrics.png"], partial(fig.savefig, dpi=110))
     plt.close(fig)
 
     write_map_png(result, paths["expected_map.png"], result.slam.expected_map(), "expected map (eq. 6)")

@@ -4,11 +4,14 @@ the figures in the layout of the paper's Fig. 6 (c)-(e) maps and (f)-(h) metrics
 from __future__ import annotations
 
 import csv
+import io
 import math
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from ..inputs.paths import write_atomically, write_text_atomically
 from .ab import POLICIES, ABRun
 from .intervals import difference_interval, measure_interval
 
@@ -131,12 +134,14 @@ def markdown_summary(rows: list[dict], settings_text: str) -> str:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-    """``rows`` as a CSV file with a header of every key any row has (an empty cell where a row lacks one)."""
+    """``rows`` as a CSV file with a header of every key any row has (an empty cell where a row lacks one),
+    written under a temporary name and renamed into place."""
     columns = list(dict.fromkeys(k for row in rows for k in row))
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(rows)
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns)
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomically(path, text.getvalue())
 
 
 def read_csv(path) -> list[dict]:
@@ -216,7 +221,7 @@ def plot_metrics(runs: list[ABRun], path: Path) -> None:
     fig.suptitle(f"A (close the loop first) vs B (explore first): mean ± 1 s.d. over {n_seeds} seeds",
                  fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomically(path, partial(fig.savefig, dpi=110))
     plt.close(fig)
 
 
@@ -253,7 +258,7 @@ def plot_maps(runs: list[ABRun], seed: int, path: Path) -> None:
                ["true walls", "best particle's path"], loc="lower center", ncol=2, fontsize=8, frameon=False,
                title="expected map: white free, black occupied, grey unknown", title_fontsize=8)
     fig.tight_layout(rect=(0, 0.1, 1, 1))
-    fig.savefig(path, dpi=110)
+    write_atomically(path, partial(fig.savefig, dpi=110))
     plt.close(fig)
 
 
@@ -266,7 +271,7 @@ def write_report(runs: list[ABRun], out_dir, settings_text: str, map_seed: int |
              "metrics_figure": out / "ab_fig6_metrics.png", "maps_figure": out / "ab_fig6_maps.png"}
     write_csv(files["updates"], update_rows(runs))
     write_csv(files["runs"], rows)
-    files["summary"].write_text(markdown_summary(rows, settings_text))
+    write_text_atomically(files["summary"], markdown_summary(rows, settings_text))
     plot_metrics(runs, files["metrics_figure"])
     plot_maps(runs, runs[0].seed if map_seed is None else map_seed, files["maps_figure"])
     return files

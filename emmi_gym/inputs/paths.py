@@ -3,7 +3,9 @@
 A file to read must exist and be a regular file (a folder, a device such as ``/dev/zero`` or a
 socket is named as what it is, not reported missing); a log may also be a pipe. A folder to
 write is created and written to before any work starts, so that a run is not lost at its end
-for want of a place to put what it made.
+for want of a place to put what it made. Every file a run writes goes through
+:func:`write_atomically`: written whole under a temporary name beside it, then renamed into
+place, so a run killed mid-write leaves the previous file (or none), never half of one.
 """
 
 from __future__ import annotations
@@ -81,3 +83,25 @@ def _why_not(path: Path, exc: OSError) -> str:
                 return f"{parent} is {file_kind(parent.stat().st_mode)}, not a folder"
             break
     return exc.strerror or type(exc).__name__
+
+
+def write_atomically(path, write) -> Path:
+    """Call ``write(tmp)`` to write the file ``path`` under a temporary name in the same folder, then rename
+    it into place (``os.replace``, atomic on POSIX and Windows): a process killed mid-write leaves the old
+    file whole (or none) and at most a ``<stem>.tmp<suffix>`` beside it; an exception removes the temporary
+    file. The temporary name keeps the suffix, which writers such as SB3's ``save``, ``np.savez`` and
+    matplotlib's ``savefig`` read (or append when it is missing)."""
+    path = Path(path)
+    tmp = path.with_name(f"{path.stem}.tmp{path.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_text_atomically(path, text: str) -> Path:
+    """:func:`write_atomically` of ``text`` (UTF-8)."""
+    return write_atomically(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
