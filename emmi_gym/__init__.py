@@ -1,6 +1,7 @@
 """emmi-gym: active-SLAM environments with the EMMI certainty reward (Blanco et al., IROS 2006).
 
-Importing the package registers the environments::
+Importing the package registers the environments and makes the shipped agents available
+(``emmi_gym.pretrained``)::
 
     import gymnasium as gym, emmi_gym
     gym.register_envs(emmi_gym)
@@ -17,3 +18,7 @@ def _register() -> None:
 
 
 _register()
+
+from . import pretrained  # after the ids are registered; it imports nothing heavy
+
+__all__ = ["__version__", "pretrained"]

@@ -8,6 +8,8 @@ from __future__ import annotations
 import ast
 import importlib.util
 import re
+import subprocess
+import sys
 from dataclasses import fields
 from pathlib import Path
 
@@ -262,3 +264,14 @@ def test_contributing_names_files_commands_and_markers_that_exist(pytestconfig):
         assert done.value.code == 0, f"CONTRIBUTING.md names `emmi-gym {command}`, which is not a subcommand"
     markers = [line.split(":")[0] for line in pytestconfig.getini("markers")]
     assert "slow" in markers and "@pytest.mark.slow" in text, "CONTRIBUTING.md's slow marker is not pytest's"
+
+
+@pytest.mark.parametrize("page", ["README.md", "docs/training.md"])
+def test_the_pretrained_agents_snippets_run_as_written_in_a_fresh_interpreter(page):
+    """What a new user copies: ``import emmi_gym`` alone must make ``emmi_gym.pretrained`` available."""
+    blocks = [block for block in re.findall(r"```python\n(.*?)```", (ROOT / page).read_text(), re.S)
+              if "emmi_gym.pretrained" in block]
+    assert blocks, f"{page} shows no snippet of emmi_gym.pretrained"
+    for block in blocks:
+        done = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True, timeout=600, cwd=ROOT)
+        assert done.returncode == 0, f"{page}'s snippet fails:\n{block}\n{done.stderr[-2000:]}"

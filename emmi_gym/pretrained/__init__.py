@@ -2,11 +2,13 @@
 ``emmi-gym train`` wrote), ``config.yaml`` (its run's configuration) and ``MODEL_CARD.md``
 (configuration, budget, seed, training time and its evaluation table).
 
-One line loads one (needs the ``train`` extra)::
+One line loads one (needs the ``train`` extra), another makes the env it was trained for (its
+configuration's ``gym.make`` keywords, which need not be the registered defaults)::
 
-    model = emmi_gym.pretrained.load("loop_corridor_emmi")
+    model = emmi_gym.pretrained.load("explore_plans_emmi")
+    env = emmi_gym.pretrained.make_env("explore_plans_emmi", world="dungeon_maps/test")
 
-and ``emmi-gym evaluate --pretrained loop_corridor_emmi`` plays it.
+and ``emmi-gym evaluate --pretrained explore_plans_emmi`` plays it.
 """
 
 from __future__ import annotations
@@ -40,3 +42,14 @@ def load(name: str):
     from ..training.evaluate import load_model
 
     return load_model(model_path(name))[0]
+
+
+def make_env(name: str, **overrides):
+    """``gym.make`` of the env the shipped agent ``name`` was trained in: its configuration's env id and
+    keywords, updated by ``overrides`` (e.g. ``world="dungeon_maps/test"`` for held-out floor plans)."""
+    import gymnasium as gym
+
+    from ..training.config import env_of_file
+
+    env_id, kwargs = env_of_file(model_path(name).with_name("config.yaml"))
+    return gym.make(env_id, **{**kwargs, **overrides})

@@ -367,22 +367,35 @@ def _vec_env(source: str, algorithm: str, value) -> str:
     return value
 
 
-def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
-    """Check a whole configuration given as a dict (as read from YAML), making its env once, and resolve it."""
+def _env_field(data: dict, source: str) -> tuple[str, dict]:
+    """The env id and keywords of a configuration's ``env`` field, checked as far as a configuration can
+    without making the env."""
     from ..env import ENV_IDS
 
+    env = data.get("env")
+    if not isinstance(env, dict) or not isinstance(env.get("id"), str) or set(env) - {"id", "kwargs"}:
+        raise AgentConfigError(source, "env", "a mapping with an 'id' (and optional 'kwargs')", env)
+    env_id = check_value(env["id"], Choice(tuple(f"emmi_gym/{name}" for name in ENV_IDS)), source, "env.id",
+                         AgentConfigError)
+    return env_id, dict(check_value(env.get("kwargs") or {}, Mapping(), source, "env.kwargs", AgentConfigError))
+
+
+def env_of_file(path) -> tuple[str, dict]:
+    """The env id and ``gym.make`` keywords of the configuration file ``path`` (following ``base`` files),
+    without the rest of its checks (nor the import of Stable-Baselines3 they need)."""
+    path = Path(path)
+    return _env_field(_read(path), str(path))
+
+
+def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
+    """Check a whole configuration given as a dict (as read from YAML), making its env once, and resolve it."""
     def field(name: str, check: Check, default=None):
         return check_value(data.get(name, default), check, source, name, AgentConfigError)
 
     unknown = sorted(set(map(str, data)) - set(_KEYS))
     if unknown:
         raise AgentConfigError(source, unknown[0], f"one of the fields {list(_KEYS)}")
-    env = data.get("env")
-    if not isinstance(env, dict) or not isinstance(env.get("id"), str) or set(env) - {"id", "kwargs"}:
-        raise AgentConfigError(source, "env", "a mapping with an 'id' (and optional 'kwargs')", env)
-    env_id = check_value(env["id"], Choice(tuple(f"emmi_gym/{name}" for name in ENV_IDS)), source, "env.id",
-                         AgentConfigError)
-    kwargs = check_value(env.get("kwargs") or {}, Mapping(), source, "env.kwargs", AgentConfigError)
+    env_id, kwargs = _env_field(data, source)
     algorithm = field("algorithm", Choice(ALGORITHMS))
     policy = field("policy", Choice(POLICIES), "MultiInputPolicy")
     if policy == "TargetScoringPolicy" and algorithm != "MaskablePPO":
