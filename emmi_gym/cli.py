@@ -199,8 +199,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
     print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
           f"{out}/tb)")
-    result = train(config, out, resume=args.resume, progress=not args.quiet,
-                   ray_address=None if args.ray in (None, "env") else args.ray, init_from=args.init_from)
+    result = train(config, out, resume=args.resume, overwrite=args.overwrite, progress=not args.quiet,
+                   ray_address=None if args.ray in (None, "env") else args.ray, init_from=args.init_from,
+                   allow_no_training=args.allow_no_training, report=print)
     if result.interrupted:
         print(f"\ninterrupted at {result.timesteps} steps: saved {result.model_path}; continue with --resume")
         return 130
@@ -210,18 +211,28 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 def _cmd_clone(args: argparse.Namespace) -> int:
-    import yaml
-
     from .inputs.paths import output_folder
     from .policies import POLICY_NAMES
     from .training.config import load_agent_config
-    from .training.imitation import Demonstrations, agreement, check_cloneable, clone_run, collect_demonstrations
+    from .training.imitation import (
+        CLONE_FILES,
+        Demonstrations,
+        agreement,
+        check_cloneable,
+        clone_run,
+        collect_demonstrations,
+        write_clone_record,
+    )
+    from .training.run_folder import check_new_run_folder, clear_run_folder
 
     if args.policy not in POLICY_NAMES:
         raise ValueError(f"--policy: unknown {args.policy!r}; choose from {list(POLICY_NAMES)}")
+    check_new_run_folder(Path(args.out), args.overwrite, resumable=False)
     out = output_folder(args.out)
     config = load_agent_config(args.config)
     check_cloneable(config)  # before any episode is played
+    if args.overwrite:
+        clear_run_folder(out, CLONE_FILES)
     if args.demos:
         demonstrations = Demonstrations.load(*args.demos)  # checked, then read into one set of arrays
     else:
@@ -233,7 +244,7 @@ def _cmd_clone(args: argparse.Namespace) -> int:
     record = {"policy": args.policy, "episodes": demonstrations.episodes, "decisions": len(demonstrations),
               "epochs": args.epochs, "losses": [round(loss, 4) for loss in losses],
               "agreement": round(agreement(model, demonstrations), 4)}
-    (out / "clone.yaml").write_text(yaml.safe_dump(record, sort_keys=False))
+    write_clone_record(out, record)
     print(f"loss {losses[0]:.3f} -> {losses[-1]:.3f}; the model takes the demonstrated action at "
           f"{record['agreement']:.1%} of the decisions. Wrote {model_path}; train on with: emmi-gym train "
           f"{args.config} --init-from {model_path}")
@@ -279,7 +290,7 @@ def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
 def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:
     from .experiments.comparison import markdown_table, policy_means
     from .experiments.report import write_csv
-    from .inputs.paths import output_folder
+    from .inputs.paths import output_folder, write_text_atomically
     from .policies import POLICY_NAMES
     from .training.evaluate import OWN_WORLD, compare_model, format_table, write_figures
 
@@ -302,7 +313,7 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
         print("\n" + table)
     if out is not None:
         write_csv(out / "episodes.csv", rows)
-        (out / "summary.md").write_text("\n\n".join([format_table(means), *tables]) + "\n")
+        write_text_atomically(out / "summary.md", "\n\n".join([format_table(means), *tables]) + "\n")
         figures = write_figures(rows, model, name, args.baselines, out)
         print(f"\nwrote {', '.join(str(p) for p in [out / 'episodes.csv', out / 'summary.md', *figures])}")
     return 0
@@ -329,7 +340,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     results = run_benchmark(config, args.rewards, range(args.seeds), args.timesteps, args.episodes, args.baselines,
                             args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet,
-                            init_from=args.init_from)
+                            init_from=args.init_from, allow_no_training=args.allow_no_training)
     elapsed = time.perf_counter() - started
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
@@ -396,10 +407,19 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--timesteps", type=_integer(1), default=None, help="override total_timesteps")
     tr.add_argument("--seed", type=_SEED, default=None, help="override seed")
     tr.add_argument("--out", default=None, help="run folder (default runs/<config>_seed<seed>)")
-    tr.add_argument("--resume", action="store_true", help="continue from the run folder's latest checkpoint")
+    tr.add_argument("--resume", action="store_true",
+                    help="continue the run in --out from its latest checkpoint, with the configuration it started "
+                         "with (only the budget, the envs' number and vectorisation, the evaluation and checkpoint "
+                         "schedules may change)")
+    tr.add_argument("--overwrite", action="store_true",
+                    help="start a new run in a folder that holds one, removing the files a run writes there "
+                         "(without it a folder that is not empty is refused)")
     tr.add_argument("--init-from", default=None, metavar="MODEL",
-                    help="start from this model's weights (same algorithm, spaces and network) and train on with "
-                         "this configuration; its decisions count towards the total")
+                    help="start from this model's weights (same algorithm, env id, spaces and network) and train on "
+                         "with this configuration; its decisions count towards the total")
+    tr.add_argument("--allow-no-training", action="store_true",
+                    help="with --init-from: accept a model that already holds the configuration's total_timesteps "
+                         "(copy it into a new run without training)")
     tr.add_argument("--ray", nargs="?", const="env", default=None, metavar="ADDRESS",
                     help="run the env workers as Ray actors (vec_env: ray_workers, or ray for vec_env subproc and "
                          "dummy) on the cluster at ADDRESS ('local': a Ray instance on this machine; no ADDRESS: "
@@ -420,6 +440,8 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--epochs", type=_integer(1), default=20)
     cl.add_argument("--workers", type=_integer(1), default=None, help="worker processes (default one per core)")
     cl.add_argument("--out", required=True, help="folder for model.zip, config.yaml, demonstrations.npz, clone.yaml")
+    cl.add_argument("--overwrite", action="store_true",
+                    help="write into a folder that is not empty, replacing an earlier clone's files there")
     cl.add_argument("--quiet", action="store_true", help="no progress bar")
     cl.set_defaults(func=_cmd_clone)
 
@@ -459,6 +481,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--init-from", default=None, metavar="MODEL",
                        help="every agent starts from this model's weights (as 'train --init-from'), e.g. a "
                             "clone of a scripted policy from 'emmi-gym clone'")
+    bench.add_argument("--allow-no-training", action="store_true",
+                       help="with --init-from: accept a model that already holds --timesteps decisions (the agents "
+                            "are then that model, evaluated under each reward's env)")
     bench.add_argument("--workers", type=int, default=None, help="local worker processes (default one per core)")
     bench.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
                        help="run on Ray: a cluster address, or none for a local instance")

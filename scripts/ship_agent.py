@@ -25,7 +25,8 @@ from emmi_gym.experiments.comparison import markdown_table, policy_means
 from emmi_gym.experiments.report import read_csv
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.training.records import TrainingRecordError
-from emmi_gym.training.train import TRAINING_RECORD, load_run_config, machine_description, training_record
+from emmi_gym.training.run_record import TRAINING_RECORD, machine_description
+from emmi_gym.training.train import load_run_config, training_record
 
 MAX_MODEL_BYTES = 10 * 2**20
 

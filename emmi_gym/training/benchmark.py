@@ -4,7 +4,9 @@ and the scripted baselines on the *same* held-out episodes under the *same* grou
 Runs are independent jobs: by default they go to local worker processes; with a Ray address
 (or "local" for a fresh local Ray instance) they go to a Ray cluster instead. Ray is an
 optional extra, imported only on that path. A run folder that already holds the finished
-model of the same configuration is evaluated, not trained again.
+model of the same configuration is evaluated, not trained again; one that holds an unfinished run
+of it (a benchmark interrupted) is resumed; one that holds anything else is refused before any
+job starts.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import csv
 import math
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -24,10 +27,12 @@ from ..experiments.episodes import PolicyActor, nanmean, run_episodes
 from ..experiments.intervals import measure_interval
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
+from ..inputs.paths import write_atomically, write_text_atomically
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
-from .model_files import check_model_file
+from .run_folder import RunError, differing_fields, folder_entries
 from .train import make_env, set_torch_threads, train
+from .warm_start import check_init_from
 
 #: Ground-truth columns of the benchmark table, with their labels.
 TABLE_COLUMNS = {
@@ -46,8 +51,8 @@ TABLE_COLUMNS = {
 @dataclass(frozen=True)
 class Job:
     """One benchmark run: train ``config`` with reward ``variant`` (kind "agent"; from the weights of
-    the model ``init_from``, if given), or run the scripted policy ``variant`` (kind "baseline"); then
-    evaluate on the held-out episodes."""
+    the model ``init_from``, if given, with ``allow_no_training`` as ``train``'s), or run the scripted
+    policy ``variant`` (kind "baseline"); then evaluate on the held-out episodes."""
 
     kind: str
     variant: str
@@ -57,6 +62,7 @@ class Job:
     episodes: int
     episode_seed: int
     init_from: Path | None = None
+    allow_no_training: bool = False
 
 
 def run_job(job: Job) -> dict:
@@ -66,9 +72,13 @@ def run_job(job: Job) -> dict:
     curve = []
     if job.kind == "agent":
         model_path = job.run_dir / "model.zip"
-        trained = not _already_trained(job)
+        state = run_state(job)
+        trained = state != "finished"
         if trained:
-            model_path = train(job.config, job.run_dir, progress=False, init_from=job.init_from).model_path
+            resume = state == "unfinished"
+            model_path = train(job.config, job.run_dir, resume=resume, progress=False,
+                               init_from=None if resume else job.init_from,
+                               allow_no_training=job.allow_no_training).model_path
         rows = evaluate_model(model_path, job.episodes, job.episode_seed)
         evaluations = job.run_dir / "eval_ground_truth.csv"
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
@@ -87,21 +97,29 @@ def run_job(job: Job) -> dict:
     return {"job": job, "rows": rows, "curve": curve, "trained": trained, "wall_seconds": time.perf_counter() - started}
 
 
-def _already_trained(job: Job) -> bool:
-    """Whether the job's run folder holds a finished model of the same configuration, started from the
-    same model (a benchmark run again into the same folder, e.g. after an interruption, evaluates it
-    instead of training again)."""
-    from .train import load_run_config, training_record
+def run_state(job: Job) -> str:
+    """What the agent job's run folder holds: ``"new"`` (nothing), ``"finished"`` (the finished model of the
+    same configuration, started from the same model: a benchmark run again into the same folder evaluates
+    it instead of training again), ``"unfinished"`` (a run of them that stopped before its end: resumed), or
+    ``"other"`` (anything else: refused by :func:`run_benchmark` before any job starts)."""
+    from .config import load_agent_config
+    from .train import training_record
 
-    if not (job.run_dir / "model.zip").exists():
-        return False
+    if not folder_entries(job.run_dir):
+        return "new"
+    own = job.run_dir / "config.yaml"
     started_from = (training_record(job.run_dir) or {}).get("init_from")
-    return (load_run_config(job.run_dir / "model.zip").as_yaml_dict() == job.config.as_yaml_dict()
-            and started_from == (None if job.init_from is None else str(job.init_from)))
+    same = own.is_file() and started_from == (None if job.init_from is None else str(job.init_from)) and \
+        not differing_fields(load_agent_config(own), job.config, ignore=("total_timesteps",))
+    if not same:
+        return "other"
+    finished = (job.run_dir / "model.zip").is_file() and load_agent_config(own).total_timesteps == \
+        job.config.total_timesteps
+    return "finished" if finished else "unfinished"
 
 
 def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir,
-              init_from=None) -> list[Job]:
+              init_from=None, allow_no_training: bool = False) -> list[Job]:
     """The agents (one per reward and seed, trained with ``dummy`` vectorisation: the jobs run in
     parallel already; each from the weights of the model ``init_from``, if given, as ``train
     --init-from``) and one job per scripted baseline."""
@@ -115,7 +133,7 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
             agent = replace(config, env_kwargs=dict(config.env_kwargs, reward=reward), seed=int(seed),
                             total_timesteps=int(timesteps), vec_env="dummy")
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
-                            EVALUATION_SEED, init_from))
+                            EVALUATION_SEED, init_from, allow_no_training))
     for name in baselines:
         jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, EVALUATION_SEED))
     return jobs
@@ -148,12 +166,20 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
 
 def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
                   workers: int | None = None, ray_address: str | None = None, progress: bool = True,
-                  init_from=None) -> list[dict]:
+                  init_from=None, allow_no_training: bool = False) -> list[dict]:
     """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed.
-    ``init_from`` (a model every agent starts from) is checked before any job starts."""
-    if init_from is not None:
-        init_from = check_model_file(init_from, config.algorithm)
-    jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from)
+    ``init_from`` (a model every agent starts from, as ``train``'s) and the run folders (:func:`run_state`)
+    are checked before any job starts."""
+    init_from = None if init_from is None else Path(init_from)
+    jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from, allow_no_training)
+    agents = [job for job in jobs if job.kind == "agent"]
+    if init_from is not None and agents:
+        check_init_from(init_from, agents[0].config, allow_no_training)
+    taken = [str(job.run_dir) for job in agents if run_state(job) == "other"]
+    if taken:
+        raise RunError(f"{', '.join(taken[:4])}{' ...' if len(taken) > 4 else ''}: not empty, and not a run of this "
+                       "benchmark's configuration (reward, seed, budget, --init-from): remove it or give another "
+                       "--out")
     if ray_address is not None:
         results = _ray(jobs, ray_address, progress)
     else:
@@ -238,7 +264,7 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
         axes[0].text(0.5, 0.5, "no periodic evaluation yet\n(training shorter than eval.freq)", ha="center",
                      va="center", transform=axes[0].transAxes, fontsize=8)
     fig.tight_layout()
-    fig.savefig(files["curves"], dpi=110)
+    write_atomically(files["curves"], partial(fig.savefig, dpi=110))
     plt.close(fig)
 
     table = summary(results)
@@ -255,7 +281,7 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
         ax.set_title(TABLE_COLUMNS[column], fontsize=9)
         ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
-    fig.savefig(files["final"], dpi=110)
+    write_atomically(files["final"], partial(fig.savefig, dpi=110))
     plt.close(fig)
     return files
 
@@ -266,6 +292,6 @@ def write_benchmark(results: list[dict], out_dir, header: str) -> dict[str, Path
     out.mkdir(parents=True, exist_ok=True)
     files = {"episodes": out / "benchmark_episodes.csv", "summary": out / "benchmark_summary.md"}
     write_csv(files["episodes"], [row for r in results for row in r["rows"]])
-    files["summary"].write_text(markdown(results, header))
+    write_text_atomically(files["summary"], markdown(results, header))
     files.update(plot(results, out))
     return files

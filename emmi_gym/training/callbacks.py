@@ -1,15 +1,75 @@
-"""Periodic evaluation on held-out seeds that also logs the ground-truth metrics."""
+"""Callbacks of training: periodic evaluation on held-out seeds that also logs the ground-truth metrics,
+and the check that stops training at the first non-finite number."""
 
 from __future__ import annotations
 
 import csv
+import io
+import math
 from pathlib import Path
 
 import numpy as np
-from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
 from ..experiments.episodes import GROUND_TRUTH, nanmean
 from ..experiments.loop_order import LOOP_ORDER_KEY
+from ..inputs.paths import write_text_atomically
+
+
+class NonFiniteError(ValueError):
+    """Training or cloning produced a non-finite (NaN or infinite) loss, gradient or weight, or was fed a
+    non-finite observation or reward; nothing of it was saved."""
+
+
+def first_non_finite(module) -> str | None:
+    """The first weight (or its gradient) of the torch ``module`` (a policy) holding a NaN or an infinity, in
+    words (``"the weight 'value_net.weight' holds 3 NaN or infinite values (of 64)"``); None if none does."""
+    import torch as th
+
+    for name, parameter in module.named_parameters():
+        for what, tensor in (("weight", parameter), ("gradient of the weight", parameter.grad)):
+            if tensor is not None:
+                finite = th.isfinite(tensor)
+                if not bool(finite.all()):
+                    return f"the {what} {name!r} holds {int((~finite).sum())} NaN or infinite values (of " \
+                           f"{tensor.numel()})"
+    return None
+
+
+class StopOnNonFinite(BaseCallback):
+    """Stop training at the first non-finite number, before a checkpoint could hold it: the observations and
+    rewards of every step (as SB3's ``VecCheckNan`` checks a vectorised env's), and after every update
+    (which SB3 runs between rollouts) the losses it logged and every weight and gradient of the policy.
+    Raises :class:`NonFiniteError` saying what and at which decision."""
+
+    def _on_step(self) -> bool:
+        rewards = np.asarray(self.locals.get("rewards", ()), dtype=float)
+        if not np.isfinite(rewards).all():
+            self._stop(f"the env returned a non-finite reward ({rewards.tolist()})")
+        observations = self.locals.get("new_obs")
+        parts = observations.items() if isinstance(observations, dict) else [("", observations)]
+        for key, value in parts:
+            value = np.asarray(value)
+            if value.dtype.kind == "f" and not np.isfinite(value).all():
+                self._stop(f"the env returned a non-finite observation{f' {key!r}' if key else ''}")
+        return True
+
+    def _on_rollout_start(self) -> None:
+        check_weights(self.model, "after the update")
+        losses = {key: value for key, value in self.logger.name_to_value.items()
+                  if key.startswith("train/") and isinstance(value, float) and not math.isfinite(value)}
+        if losses:
+            self._stop(f"the update's {', '.join(f'{key} = {value}' for key, value in losses.items())}")
+
+    def _stop(self, what: str) -> None:
+        raise NonFiniteError(f"training stopped at decision {self.num_timesteps}: {what}")
+
+
+def check_weights(model, when: str) -> None:
+    """:class:`NonFiniteError` if a weight or gradient of ``model``'s policy is not finite (``when``: in words)."""
+    bad = first_non_finite(model.policy)
+    if bad is not None:
+        raise NonFiniteError(f"training stopped at decision {model.num_timesteps}: {when}, {bad}")
 
 
 class GroundTruthEvalMixin:
@@ -49,12 +109,13 @@ class GroundTruthEvalMixin:
     def _append_row(self) -> None:
         row = {"timesteps": self.num_timesteps, "mean_reward": self.last_mean_reward,
                **{k: nanmean([m.get(k, np.nan) for m in self._finished]) for k in self._finished[0]}}
-        new = not self.ground_truth_csv.exists()
-        with open(self.ground_truth_csv, "a", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(row))
-            if new:
-                writer.writeheader()
-            writer.writerow(row)
+        earlier = self.ground_truth_csv.read_text() if self.ground_truth_csv.exists() else ""
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=list(row))
+        if not earlier:
+            writer.writeheader()
+        writer.writerow(row)
+        write_text_atomically(self.ground_truth_csv, earlier + text.getvalue())
 
 
 class GroundTruthEvalCallback(GroundTruthEvalMixin, EvalCallback):

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..inputs.errors import FieldError
 from ..inputs.npz_files import NpzArray, npz_arrays, read_array_into
+from ..inputs.paths import write_atomically
 
 #: The most a demonstrations file (or the files fitted together) may unpack to (100,000 decisions of the
 #: 64 x 64 plans observation take 0.8 GiB).
@@ -44,9 +45,10 @@ class Demonstrations:
         return len(self.actions)
 
     def save(self, path) -> None:
-        """Write to ``path`` (a compressed ``.npz``)."""
-        np.savez_compressed(path, masks=self.masks, actions=self.actions, episodes=self.episodes,
-                            **{f"obs_{key}": value for key, value in self.observations.items()})
+        """Write to ``path`` (a compressed ``.npz``; under a temporary name, then renamed)."""
+        write_atomically(path, lambda tmp: np.savez_compressed(
+            tmp, masks=self.masks, actions=self.actions, episodes=self.episodes,
+            **{f"obs_{key}": value for key, value in self.observations.items()}))
 
     @classmethod
     def load(cls, *paths) -> Demonstrations:

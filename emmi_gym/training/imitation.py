@@ -17,8 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from ..concurrency.parallel import run_in_processes
+from ..inputs.paths import write_atomically, write_text_atomically
+from .callbacks import NonFiniteError, first_non_finite
 from .config import AgentConfig
 from .demonstrations import Demonstrations
+
+#: What ``emmi-gym clone`` writes into its folder (all that ``--overwrite`` removes).
+CLONE_FILES = ("model.zip", "config.yaml", "demonstrations.npz", "clone.yaml")
 
 
 def _demonstration(job) -> tuple[int, Demonstrations]:
@@ -61,7 +66,9 @@ def clone(model, demonstrations: Demonstrations, *, epochs: int = 20, batch_size
           learning_rate: float = 1e-3, seed: int = 0) -> list[float]:
     """Fit ``model``'s policy (a MaskablePPO model) to ``demonstrations`` by maximum likelihood: Adam on
     the mean negative log-probability of the demonstrated actions, masked slots excluded, over
-    ``epochs`` shuffled passes; the mean loss of each epoch. The critic is left as it is."""
+    ``epochs`` shuffled passes; the mean loss of each epoch. The critic is left as it is. A non-finite
+    loss, gradient or weight stops the fit with :class:`~emmi_gym.training.callbacks.NonFiniteError`
+    (before the step that would spread it into the weights)."""
     import torch as th
 
     policy = model.policy
@@ -70,23 +77,41 @@ def clone(model, demonstrations: Demonstrations, *, epochs: int = 20, batch_size
     generator = np.random.default_rng(seed)
     n = len(demonstrations)
     losses = []
-    for _ in range(epochs):
+    for epoch in range(epochs):
         order, total = generator.permutation(n), 0.0
         for start in range(0, n, batch_size):
             batch = order[start:start + batch_size]
-            observations, _ = policy.obs_to_tensor({key: value[batch]
-                                                    for key, value in demonstrations.observations.items()})
+            arrays = {key: value[batch] for key, value in demonstrations.observations.items()}
+            rows = non_finite_rows(arrays)
+            if rows.size:
+                raise NonFiniteError(f"cloning stopped in epoch {epoch + 1}: the observations of the demonstrated "
+                                     f"decisions {sorted(batch[rows].tolist())[:8]} are not finite (NaN or infinite)")
+            observations, _ = policy.obs_to_tensor(arrays)
             actions = th.as_tensor(demonstrations.actions[batch], device=policy.device)
             _, log_prob, _ = policy.evaluate_actions(observations, actions,
                                                      action_masks=demonstrations.masks[batch])
             loss = -log_prob.mean()
             optimizer.zero_grad()
             loss.backward()
+            bad = None if th.isfinite(loss) else f"the loss is {loss.item()}"
+            bad = bad or first_non_finite(policy)
+            if bad is not None:
+                raise NonFiniteError(f"cloning stopped in epoch {epoch + 1}: {bad}, on a batch of {len(batch)} "
+                                     "demonstrated decisions (a learning rate too large?); nothing was saved")
             optimizer.step()
             total += loss.item() * len(batch)
         losses.append(total / n)
     policy.set_training_mode(False)
     return losses
+
+
+def non_finite_rows(arrays: dict[str, np.ndarray]) -> np.ndarray:
+    """The rows (decisions) of stacked observation arrays where a float holds NaN or an infinity."""
+    rows = np.zeros(len(next(iter(arrays.values()))), dtype=bool)
+    for value in arrays.values():
+        if value.dtype.kind == "f":
+            rows |= ~np.isfinite(value.reshape(len(value), -1)).all(axis=1)
+    return np.flatnonzero(rows)
 
 
 def agreement(model, demonstrations: Demonstrations, batch_size: int = 1024) -> float:
@@ -134,11 +159,17 @@ def cloned_model(config: AgentConfig, demonstrations: Demonstrations, **fit):
 
 def clone_run(config: AgentConfig, demonstrations: Demonstrations, run_dir, **fit):
     """Write a run folder that ``emmi-gym train --init-from`` continues (``model.zip``, ``config.yaml``);
-    the model's path, the losses per epoch and the model."""
+    the model's path, the losses per epoch and the model. Nothing is written if the fit fails."""
     from .train import write_run_config
 
     run_dir = Path(run_dir)
     model, losses = cloned_model(config, demonstrations, **fit)
     write_run_config(config, run_dir)
-    model.save(run_dir / "model.zip")
-    return run_dir / "model.zip", losses, model
+    return write_atomically(run_dir / "model.zip", model.save), losses, model
+
+
+def write_clone_record(run_dir, record: dict) -> Path:
+    """Write ``clone.yaml`` (what was fitted, the losses, the agreement) into ``run_dir``."""
+    import yaml
+
+    return write_text_atomically(Path(run_dir) / "clone.yaml", yaml.safe_dump(record, sort_keys=False))

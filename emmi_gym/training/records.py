@@ -9,7 +9,7 @@ import math
 from dataclasses import asdict, dataclass
 
 from ..inputs.errors import FieldError
-from ..inputs.validation import Integer, Maybe, Real, Text, build, check_fields, option
+from ..inputs.validation import Check, Integer, Invalid, Maybe, Real, Text, build, check_fields, option
 from ..inputs.yaml_files import read_yaml_file
 
 
@@ -17,17 +17,51 @@ class TrainingRecordError(FieldError):
     """A run folder's ``training.yaml`` is not what ``emmi-gym train`` writes; names the file and field."""
 
 
+#: The most parts a record may list (a run resumed that many times).
+MAX_PARTS = 10_000
+_DECISIONS = Integer(0, 2**62)
+_SECONDS = Real(0.0, math.inf)
+
+
+@dataclass(frozen=True)
+class Parts(Check):
+    """The ``parts`` of a record (:mod:`~emmi_gym.training.run_record`): a list of at most :data:`MAX_PARTS`
+    mappings of ``start`` and ``end`` (decisions, ``start <= end``) and ``wall_seconds``."""
+
+    def describe(self) -> str:
+        return f"a list of at most {MAX_PARTS} parts, each {{start, end, wall_seconds}} with 0 <= start <= end"
+
+    def __call__(self, value):
+        if not isinstance(value, list) or len(value) > MAX_PARTS:
+            raise Invalid(self.describe())
+        parts = []
+        for part in value:
+            if not isinstance(part, dict) or set(part) != {"start", "end", "wall_seconds"}:
+                raise Invalid(self.describe())
+            try:
+                start, end = _DECISIONS(part["start"]), _DECISIONS(part["end"])
+                wall_seconds = _SECONDS(part["wall_seconds"])
+            except Invalid:
+                raise Invalid(self.describe()) from None
+            if end < start:
+                raise Invalid(self.describe())
+            parts.append({"start": start, "end": end, "wall_seconds": wall_seconds})
+        return parts
+
+
 @dataclass(frozen=True)
 class TrainingRecord:
     """The fields of ``training.yaml`` (each optional: a record lacking one reads as its default)."""
 
-    timesteps: int = option(0, Integer(0, 2**62), "decisions the model has trained, its start's included")
-    wall_seconds: float = option(0.0, Real(0.0, math.inf), "wall time of training, summed over the run's parts")
+    timesteps: int = option(0, _DECISIONS, "decisions the model has trained, its start's included")
+    wall_seconds: float = option(0.0, _SECONDS, "wall time of training, summed over the run's parts")
     finished: str | None = option(None, Maybe(Text()), "when the last part ended")
     machine: str | None = option(None, Maybe(Text()), "the machine it trained on")
     emmi_gym: str | None = option(None, Maybe(Text()), "the package's version")
     torch: str | None = option(None, Maybe(Text()), "torch's version")
     init_from: str | None = option(None, Maybe(Text()), "the model whose weights the run started from")
+    init_decisions: int = option(0, _DECISIONS, "the decisions of the model the run started from")
+    parts: list = option([], Parts(), "each stretch of training: start and end decisions, wall time")
 
     def __post_init__(self):
         check_fields(self)

@@ -5,7 +5,12 @@ A run folder holds ``config.yaml`` (the resolved configuration), ``model.zip`` (
 model), ``checkpoints/`` (``model_<steps>_steps.zip``, with the replay buffer for off-policy
 algorithms), ``eval/`` (SB3's ``evaluations.npz`` and the best model),
 ``eval_ground_truth.csv`` (the ground-truth means of every evaluation), ``training.yaml``
-(steps, wall time, machine and versions of the finished model) and ``tb/`` (TensorBoard logs).
+(:mod:`~emmi_gym.training.run_record`) and ``tb/`` (TensorBoard logs). What a run checks before
+it writes anything (a folder in use, a resumed configuration, the model it starts from) is
+:mod:`~emmi_gym.training.run_folder`'s; every file is written under a temporary name and renamed
+into place (:func:`~emmi_gym.inputs.paths.write_atomically`), and training stops at the first
+non-finite number (:class:`~emmi_gym.training.callbacks.StopOnNonFinite`), so no file of a run is
+ever half written or holds NaN weights.
 """
 
 from __future__ import annotations
@@ -13,7 +18,6 @@ from __future__ import annotations
 import copy
 import gc
 import os
-import platform
 import re
 import signal
 import sys
@@ -33,10 +37,13 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from ..concurrency.parallel import one_kernel_thread
 from ..experiments.loop_order import LoopOrderInfo
-from .callbacks import eval_callback_class
+from ..inputs.paths import write_atomically, write_text_atomically
+from .callbacks import NonFiniteError, StopOnNonFinite, check_weights, eval_callback_class
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument, sb3_policy_kwargs
-from .model_files import check_model_file, load_model_file
+from .model_files import load_model_file
 from .records import read_training_record
+from .run_folder import RunStart, clear_run_folder, plan_run
+from .run_record import TRAINING_RECORD, earlier_parts, record_training
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
@@ -214,15 +221,6 @@ class StopOnInterrupt(BaseCallback):
         return True
 
 
-def save_atomically(save, path: Path) -> Path:
-    """Call ``save(tmp)`` and rename ``tmp`` to ``path``: a run killed mid-save leaves the previous
-    files whole and at most a ``*.tmp.*`` file (SB3's own saves write in place)."""
-    tmp = path.with_name(f"{path.stem}.tmp{path.suffix}")
-    save(tmp)
-    os.replace(tmp, path)
-    return path
-
-
 def is_whole_zip(path: Path) -> bool:
     """Whether ``path`` is a zip archive whose members all read back (a save cut short by a kill is not)."""
     try:
@@ -256,16 +254,28 @@ def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
 
 
 class AtomicCheckpointCallback(CheckpointCallback):
-    """SB3's checkpoints (same names and schedule), each written to a temporary file and renamed."""
+    """SB3's checkpoints (same names and schedule), each written to a temporary file and renamed, only of
+    finite weights; ``on_save(decisions)`` is called once a checkpoint is written, before it is renamed
+    into place (the run's record then never lags behind its newest checkpoint)."""
+
+    def __init__(self, *args, on_save=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.on_save = on_save
 
     def _on_step(self) -> bool:
         if self.n_calls % self.save_freq == 0:
+            check_weights(self.model, "before a checkpoint")
             with interrupts_deferred():
-                save_atomically(self.model.save, Path(self._checkpoint_path(extension="zip")))
                 if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
-                    save_atomically(self.model.save_replay_buffer,
-                                    Path(self._checkpoint_path("replay_buffer_", extension="pkl")))
+                    write_atomically(Path(self._checkpoint_path("replay_buffer_", extension="pkl")),
+                                     self.model.save_replay_buffer)
+                write_atomically(Path(self._checkpoint_path(extension="zip")), self._save)
         return True
+
+    def _save(self, path: Path) -> None:
+        self.model.save(path)
+        if self.on_save is not None:
+            self.on_save(self.num_timesteps)
 
 
 def close_vec_env(env, timeout: float = 3.0) -> None:
@@ -289,63 +299,34 @@ def close_vec_env(env, timeout: float = 3.0) -> None:
     env.closed = True
 
 
-#: The run folder's record of how its model was trained (steps, wall time over every resumed part, machine).
-TRAINING_RECORD = "training.yaml"
-
-
-def machine_description() -> str:
-    """This machine in a few words: its processor's name and core count."""
-    name = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            name = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), name)
-    except OSError:
-        pass
-    return f"{name}, {os.cpu_count()} cores"
-
-
-def record_training(run_dir: Path, timesteps: int, wall_seconds: float, init_from=None) -> None:
-    """Write :data:`TRAINING_RECORD` into ``run_dir``: the steps, the wall time summed over the run's
-    parts (a resumed run adds to what its folder recorded), the date, the machine and the versions,
-    and the model the run started from (``init_from``), if any."""
-    import torch
-
-    from .. import __version__
-
-    earlier = training_record(run_dir) or {}
-    record = {"timesteps": timesteps,
-              "wall_seconds": round(float(earlier.get("wall_seconds", 0.0)) + wall_seconds, 1),
-              "finished": time.strftime("%Y-%m-%d %H:%M %Z"), "machine": machine_description(),
-              "emmi_gym": __version__, "torch": str(torch.__version__)}
-    if init_from is not None or "init_from" in earlier:
-        record["init_from"] = str(init_from) if init_from is not None else earlier["init_from"]
-    save_atomically(lambda target: Path(target).write_text(yaml.safe_dump(record, sort_keys=False)),
-                    run_dir / TRAINING_RECORD)
-
-
 def training_record(run_dir) -> dict | None:
-    """The run folder's :data:`TRAINING_RECORD` as written by :func:`record_training` (the fields it sets, checked:
-    a :class:`~emmi_gym.training.records.TrainingRecordError` naming the file and field otherwise); None if it
-    has none."""
+    """The run folder's :data:`TRAINING_RECORD` as written by :func:`~emmi_gym.training.run_record.record_training`
+    (the fields it sets, checked: a :class:`~emmi_gym.training.records.TrainingRecordError` naming the file and field
+    otherwise); None if it has none."""
     path = Path(run_dir) / TRAINING_RECORD
     return read_training_record(path) if path.exists() else None
 
 
+def run_config_path(model_path) -> Path | None:
+    """The ``config.yaml`` written beside a model (in its folder or the run folder above a checkpoint), if any."""
+    model_path = Path(model_path)
+    return next((folder / "config.yaml" for folder in (model_path.parent, model_path.parent.parent)
+                 if (folder / "config.yaml").is_file()), None)
+
+
 def load_run_config(model_path) -> AgentConfig:
     """The configuration written beside a model (in its folder or the run folder above a checkpoint)."""
-    model_path = Path(model_path)
-    for folder in (model_path.parent, model_path.parent.parent):
-        if (folder / "config.yaml").is_file():
-            return load_agent_config(folder / "config.yaml")
-    raise FileNotFoundError(f"no config.yaml beside {model_path} or in its run folder: was it written by "
-                            f"'emmi-gym train'?")
+    path = run_config_path(model_path)
+    if path is None:
+        raise FileNotFoundError(f"no config.yaml beside {model_path} or in its run folder: was it written by "
+                                f"'emmi-gym train'?")
+    return load_agent_config(path)
 
 
 def write_run_config(config: AgentConfig, run_dir: Path) -> None:
     """Write ``config`` (resolved) as the run folder's ``config.yaml``, which :func:`load_run_config` reads."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    with open(run_dir / "config.yaml", "w") as f:
-        yaml.safe_dump(config.as_yaml_dict(), f, sort_keys=False)
+    write_text_atomically(run_dir / "config.yaml", yaml.safe_dump(config.as_yaml_dict(), sort_keys=False))
 
 
 def sb3_hyperparameters(config: AgentConfig, env) -> dict:
@@ -369,47 +350,48 @@ def model_of(config: AgentConfig, env, **kwargs):
                                                                  **sb3_hyperparameters(config, env))
 
 
-def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool = True,
-          verbose: int = 0, ray_address: str | None = None, init_from=None) -> TrainResult:
-    """Train ``config`` into ``run_dir`` (see the module docstring); with ``resume``, continue from the
-    folder's latest checkpoint up to ``config.total_timesteps``; ``ray_address``: the Ray cluster of
-    ``vec_env: ray`` (see :func:`make_vec_env`). ``init_from``: a model (of the same algorithm, spaces
-    and network) whose weights a new run starts from, as rl-baselines3-zoo's ``--trained-agent``:
-    it trains on with this configuration's env and hyperparameters, and its decisions count towards
-    ``total_timesteps``."""
+def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool = False, progress: bool = True,
+          verbose: int = 0, ray_address: str | None = None, init_from=None, allow_no_training: bool = False,
+          report=None) -> TrainResult:
+    """Train ``config`` into ``run_dir`` (see the module docstring), after every check of
+    :func:`~emmi_gym.training.run_folder.plan_run` (a new run needs an empty folder, or ``overwrite``,
+    which first removes the run files there); with ``resume``, continue the folder's run from its
+    latest checkpoint up to ``config.total_timesteps``; ``ray_address``: the Ray cluster of ``vec_env:
+    ray`` (see :func:`make_vec_env`). ``init_from``: a model (of the same algorithm, env id, spaces and
+    network) whose weights a new run starts from, as rl-baselines3-zoo's ``--trained-agent``: it trains
+    on with this configuration's env and hyperparameters, and its decisions count towards
+    ``total_timesteps`` (if none is left to train: refused unless ``allow_no_training``). ``report``: called
+    with a sentence saying where the run starts and how many decisions it will train."""
     from stable_baselines3.common.callbacks import CallbackList
 
     run_dir = Path(run_dir)
     checkpoint_dir = run_dir / "checkpoints"
-    start = latest_checkpoint(run_dir) if resume else None
-    if resume and start is None:
-        raise FileNotFoundError(f"--resume: no checkpoint in {checkpoint_dir}")
-    if not resume and (run_dir / "model.zip").exists():
-        raise FileExistsError(f"{run_dir} already holds a trained model: use --resume or another --out")
-    if init_from is not None and start is None:
-        init_from = check_model_file(init_from, config.algorithm)
-    training_record(run_dir)  # a damaged record is found now, not once the model is trained
+    start = plan_run(config, run_dir, resume=resume, overwrite=overwrite, init_from=init_from,
+                     allow_no_training=allow_no_training)
+    if start.overwrite:
+        clear_run_folder(run_dir)
     write_run_config(config, run_dir)
 
     env = make_vec_env(config, config.n_envs, config.seed, config.vec_env, ray_address=ray_address)
     eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True) if config.eval.freq else None
-    if start is not None:
-        model = load_model_file(start, config.algorithm, env=env, tensorboard_log=str(run_dir / "tb"))
-        buffer = start.with_name(start.name.replace("model_", "model_replay_buffer_").replace(".zip", ".pkl"))
-        if config.algorithm in OFF_POLICY and buffer.exists():
-            model.load_replay_buffer(buffer)
-    elif init_from is not None:  # the network is the saved one's; every other setting this configuration's
-        hyperparameters = sb3_hyperparameters(config, env)
-        hyperparameters.pop("policy_kwargs", None)
-        model = load_model_file(init_from, config.algorithm, env=env, seed=config.seed,
-                                tensorboard_log=str(run_dir / "tb"), verbose=verbose, **hyperparameters)
-        record_training(run_dir, int(model.num_timesteps), 0.0, init_from)  # a resumed run still names it
-    else:
-        model = model_of(config, env, tensorboard_log=str(run_dir / "tb"), verbose=verbose)
+    model = _start_model(config, start, env, run_dir, verbose)
+    first = int(model.num_timesteps)
+    earlier = earlier_parts(start.record, first)
+    if report is not None:
+        report(start.summary(first, config.total_timesteps))
+    started = time.perf_counter()
+
+    def record(decisions: int) -> None:
+        record_training(run_dir, earlier, first, decisions, time.perf_counter() - started, start.init_from,
+                        start.init_decisions)
+
+    if start.model is not None and start.model == start.init_from and not earlier:  # names its start from now on
+        record_training(run_dir, [], first, first, None, start.init_from, start.init_decisions)
     per_env = max(1, config.n_envs)
-    checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoint_dir), name_prefix="model",
-                                       save_replay_buffer=config.algorithm in OFF_POLICY)
-    callbacks = [checkpointing]
+    checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoint_dir),
+                                             name_prefix="model", save_replay_buffer=config.algorithm in OFF_POLICY,
+                                             on_save=record)
+    callbacks = [StopOnNonFinite(), checkpointing]
     if eval_env is not None:
         callbacks.append(eval_callback_class(config.algorithm)(
             eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
@@ -417,8 +399,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
             verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv"))
     if config.discount_unit is not None:
         callbacks.append(SemiMarkovDiscounts(config.discount_unit))
-    remaining = max(config.total_timesteps - model.num_timesteps, 0)
-    started = time.perf_counter()
+    remaining = max(config.total_timesteps - first, 0)
     interrupted = False
     interrupts: list[bool] = []
     with unraisable_interrupts_quiet(interrupts):
@@ -428,25 +409,54 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, progress: bool 
                 # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
                 warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
                 model.learn(remaining, callback=CallbackList([StopOnInterrupt(interrupts), *callbacks]),
-                            progress_bar=progress, reset_num_timesteps=start is None and init_from is None,
-                            tb_log_name="run")
+                            progress_bar=progress, reset_num_timesteps=start.model is None, tb_log_name="run")
+            check_weights(model, "at the end")
             with interrupts_deferred():
-                model_path = save_atomically(model.save, run_dir / "model.zip")
-                record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started, init_from)
+                model_path = write_atomically(run_dir / "model.zip", partial(_save, model, record))
         except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
             interrupted = True
             previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short
             try:
+                check_weights(model, "at the interruption")
                 checkpoint_dir.mkdir(parents=True, exist_ok=True)
-                model_path = save_atomically(model.save, checkpoint_dir / f"model_{model.num_timesteps}_steps.zip")
                 if config.algorithm in OFF_POLICY:
-                    save_atomically(model.save_replay_buffer,
-                                    checkpoint_dir / f"model_replay_buffer_{model.num_timesteps}_steps.pkl")
-                record_training(run_dir, int(model.num_timesteps), time.perf_counter() - started, init_from)
+                    write_atomically(checkpoint_dir / f"model_replay_buffer_{model.num_timesteps}_steps.pkl",
+                                     model.save_replay_buffer)
+                model_path = write_atomically(checkpoint_dir / f"model_{model.num_timesteps}_steps.zip",
+                                              partial(_save, model, record))
             finally:
                 signal.signal(signal.SIGINT, previous)
+        except NonFiniteError as exc:
+            newest = latest_checkpoint(run_dir)
+            raise NonFiniteError(f"{run_dir}: {exc}. Nothing of it was saved; the newest checkpoint, of finite "
+                                 f"weights, is {newest if newest is not None else 'none yet'}") from None
         finally:
             close_vec_env(env)
             if eval_env is not None:
                 close_vec_env(eval_env)
     return TrainResult(run_dir, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
+
+
+def _save(model, record, path: Path) -> None:
+    """Save ``model`` to ``path`` and record the run (``record(decisions)``) before the file is renamed into place."""
+    model.save(path)
+    record(int(model.num_timesteps))
+
+
+def _start_model(config: AgentConfig, start: RunStart, env, run_dir: Path, verbose: int):
+    """The model a run starts with: the run's own checkpoint (with its replay buffer), the weights of the model
+    it starts from (``init_from``: the network is the saved one's, every other setting this configuration's),
+    or a fresh model of ``config``."""
+    tensorboard_log = str(run_dir / "tb")
+    if start.model is None:
+        return model_of(config, env, tensorboard_log=tensorboard_log, verbose=verbose)
+    if start.model == start.init_from:
+        hyperparameters = sb3_hyperparameters(config, env)
+        hyperparameters.pop("policy_kwargs", None)
+        return load_model_file(start.model, config.algorithm, env=env, seed=config.seed,
+                               tensorboard_log=tensorboard_log, verbose=verbose, **hyperparameters)
+    model = load_model_file(start.model, config.algorithm, env=env, tensorboard_log=tensorboard_log)
+    buffer = start.model.with_name(start.model.name.replace("model_", "model_replay_buffer_").replace(".zip", ".pkl"))
+    if config.algorithm in OFF_POLICY and buffer.exists():
+        model.load_replay_buffer(buffer)
+    return model
