@@ -340,7 +340,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     results = run_benchmark(config, args.rewards, range(args.seeds), args.timesteps, args.episodes, args.baselines,
                             args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet,
-                            init_from=args.init_from, allow_no_training=args.allow_no_training)
+                            init_from=args.init_from, allow_no_training=args.allow_no_training, report=print)
     elapsed = time.perf_counter() - started
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "

@@ -280,3 +280,16 @@ def test_a_run_from_a_model_interrupted_and_resumed_records_each_part(finished, 
     record = yaml.safe_load((tmp_path / "training.yaml").read_text())
     assert record["init_from"] == str(start) and record["init_decisions"] == 32 and len(record["parts"]) == 2
     assert_record_adds_up(record, resumed.timesteps)
+
+
+def test_the_benchmark_refuses_a_run_folder_of_something_else_before_any_job(tmp_path):
+    from emmi_gym.training.benchmark import run_benchmark
+    from emmi_gym.training.run_folder import RunError
+
+    config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))
+    taken = tmp_path / "runs" / "emmi_seed0"
+    taken.mkdir(parents=True)
+    (taken / "notes.txt").write_text("mine")
+    with pytest.raises(RunError, match=f"{taken}: not empty, and not a run of this benchmark's configuration"):
+        run_benchmark(config, ["emmi"], range(1), 16, 1, [], tmp_path, workers=1, progress=False)
+    assert sorted(p.name for p in taken.iterdir()) == ["notes.txt"]

@@ -427,6 +427,7 @@ def test_benchmark_agents_start_from_the_init_from_model(tmp_path, capsys):
             "--timesteps", "32", "--episodes", "1", "--baselines", "--workers", "1", "--out", str(tmp_path / "bench"),
             "--quiet"]
     assert main(argv) == 0
+    assert f"every agent: starting from {start} (16 decisions): 16 decisions to train, to 32" in capsys.readouterr().out
     record = yaml.safe_load((tmp_path / "bench" / "runs" / "coverage_seed0" / "training.yaml").read_text())
     assert record["init_from"] == str(start)
     assert f"(from the weights of {start})" in (tmp_path / "bench" / "benchmark_summary.md").read_text()

@@ -30,7 +30,7 @@ from ..experiments.report import write_csv
 from ..inputs.paths import write_atomically, write_text_atomically
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
-from .run_folder import RunError, differing_fields, folder_entries
+from .run_folder import RunError, RunStart, differing_fields, folder_entries
 from .train import make_env, set_torch_threads, train
 from .warm_start import check_init_from
 
@@ -166,15 +166,18 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
 
 def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
                   workers: int | None = None, ray_address: str | None = None, progress: bool = True,
-                  init_from=None, allow_no_training: bool = False) -> list[dict]:
+                  init_from=None, allow_no_training: bool = False, report=None) -> list[dict]:
     """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed.
     ``init_from`` (a model every agent starts from, as ``train``'s) and the run folders (:func:`run_state`)
-    are checked before any job starts."""
+    are checked before any job starts; ``report``: called with a sentence saying where the agents start and
+    how many decisions each will train."""
     init_from = None if init_from is None else Path(init_from)
     jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from, allow_no_training)
     agents = [job for job in jobs if job.kind == "agent"]
     if init_from is not None and agents:
-        check_init_from(init_from, agents[0].config, allow_no_training)
+        start = check_init_from(init_from, agents[0].config, allow_no_training)
+        if report is not None:
+            report(f"every agent: {RunStart(start.path, start.path).summary(start.decisions, timesteps)}")
     taken = [str(job.run_dir) for job in agents if run_state(job) == "other"]
     if taken:
         raise RunError(f"{', '.join(taken[:4])}{' ...' if len(taken) > 4 else ''}: not empty, and not a run of this "
