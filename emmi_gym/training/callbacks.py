@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,10 @@ from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 from ..experiments.episodes import GROUND_TRUTH, nanmean
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..inputs.paths import write_text_atomically
+
+
+#: The folder, inside the evaluation's, where SB3 writes its files before they are renamed into place.
+STAGING = ".writing"
 
 
 class NonFiniteError(ValueError):
@@ -78,13 +83,23 @@ class GroundTruthEvalMixin:
     episodes' ends as ``eval/<measure>`` (TensorBoard and stdout), appending them to
     ``ground_truth_csv``; on ``LoopCorridor-v0`` also the fraction of episodes that closed the
     loop before entering the new area, ``eval/closed_loop_first`` (episodes that did neither
-    left out)."""
+    left out). SB3's own files (``evaluations.npz`` in ``log_path``, ``best_model.zip`` in
+    ``best_model_save_path``) are written into a staging folder, :data:`STAGING`, and renamed into
+    place, so a run killed while SB3 writes one leaves the previous one whole."""
 
-    def __init__(self, *args, eval_seed: int, ground_truth_csv: Path, **kwargs):
-        super().__init__(*args, **kwargs)
+    def __init__(self, *args, eval_seed: int, ground_truth_csv: Path, log_path=None, best_model_save_path=None,
+                 **kwargs):
+        def staging(folder):
+            return None if folder is None else str(Path(folder) / STAGING)
+
+        super().__init__(*args, log_path=staging(log_path), best_model_save_path=staging(best_model_save_path),
+                         **kwargs)
         self.eval_seed = eval_seed
         self.ground_truth_csv = Path(ground_truth_csv)
         self._finished: list[dict] = []
+        self._staged = {Path(folder) / STAGING / name: Path(folder) / name
+                        for folder, name in ((log_path, "evaluations.npz"), (best_model_save_path, "best_model.zip"))
+                        if folder is not None}
 
     def _log_success_callback(self, locals_, globals_) -> None:
         super()._log_success_callback(locals_, globals_)
@@ -102,6 +117,9 @@ class GroundTruthEvalMixin:
             self.eval_env.seed(self.eval_seed)
             self._finished = []
         result = super()._on_step()
+        for staged, place in self._staged.items():
+            if staged.exists():
+                os.replace(staged, place)
         if evaluating and self._finished:
             self._append_row()
         return result
