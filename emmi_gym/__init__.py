@@ -19,6 +19,6 @@ def _register() -> None:
 
 _register()
 
-from . import pretrained  # after the ids are registered; it imports nothing heavy
+from . import pretrained  # noqa: E402  (after the ids are registered; it imports nothing heavy)
 
 __all__ = ["__version__", "pretrained"]

@@ -67,15 +67,23 @@ def run(finished, tmp_path):
 def test_resume_with_another_configuration_is_refused_before_anything_is_written(run, tmp_path, capsys):
     folder, _ = run
     before = {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()}
-    for changes, fields in (({"algorithm": "A2C", "hyper": {"n_steps": 8}}, ["algorithm"]),
-                            ({"env_id": "emmi_gym/Explore-v0"}, ["env.id"]),
-                            ({"env_extra": {"reward": "coverage"}}, ["env.kwargs.reward"])):
+    for changes, fields in (
+        ({"algorithm": "A2C", "hyper": {"n_steps": 8}}, ["algorithm"]),
+        ({"env_id": "emmi_gym/Explore-v0"}, ["env.id"]),
+        ({"env_extra": {"reward": "coverage"}}, ["env.kwargs.reward"]),
+    ):
         other = tmp_path / "other.yaml"
-        other.write_text(yaml.safe_dump(config_dict(changes.pop("algorithm", "PPO"), hyper=changes.pop(
-            "hyper", PPO_SMALL), timesteps=64, **changes)))
+        other.write_text(
+            yaml.safe_dump(
+                config_dict(
+                    changes.pop("algorithm", "PPO"), hyper=changes.pop("hyper", PPO_SMALL), timesteps=64, **changes
+                )
+            )
+        )
         code, _, err = cli(["train", other, "--resume", "--out", folder, "--quiet"], capsys)
-        assert code == 2 and f"{other} is not the configuration of the run in {folder} ({folder / 'config.yaml'})" \
-            in err, err
+        assert (
+            code == 2 and f"{other} is not the configuration of the run in {folder} ({folder / 'config.yaml'})" in err
+        ), err
         assert all(f"{field}: " in err for field in fields), err
         assert {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()} == before
     code, out, _ = cli(["evaluate", folder / "model.zip", "--episodes", "1"], capsys)
@@ -97,7 +105,7 @@ def test_a_new_run_into_a_folder_holding_one_is_refused_and_overwrite_starts_afr
     record = yaml.safe_load((folder / "training.yaml").read_text())
     assert record["timesteps"] == 16 and record["wall_seconds"] < 99999 and len(record["parts"]) == 1
     assert [decisions for decisions, _ in checkpoints(folder)] == [16]  # the old run's checkpoints are gone
-    assert (folder / "notes.txt").read_text() == "mine"                  # what a run does not write stays
+    assert (folder / "notes.txt").read_text() == "mine"  # what a run does not write stays
 
 
 def test_clone_into_a_folder_that_is_not_empty_is_refused_unless_overwrite(tmp_path, capsys):
@@ -105,8 +113,21 @@ def test_clone_into_a_folder_that_is_not_empty_is_refused_unless_overwrite(tmp_p
     out = tmp_path / "bc"
     out.mkdir()
     (out / "model.zip").write_bytes(b"an earlier clone")
-    argv = ["clone", tmp_path / "agent.yaml", "--policy", "frontier", "--episodes", "1", "--workers", "1",
-            "--epochs", "1", "--out", out, "--quiet"]
+    argv = [
+        "clone",
+        tmp_path / "agent.yaml",
+        "--policy",
+        "frontier",
+        "--episodes",
+        "1",
+        "--workers",
+        "1",
+        "--epochs",
+        "1",
+        "--out",
+        out,
+        "--quiet",
+    ]
     code, _, err = cli(argv, capsys)
     assert code == 2 and f"{out} is not empty (it holds model.zip)" in err and "--overwrite" in err
     assert (out / "model.zip").read_bytes() == b"an earlier clone"
@@ -121,19 +142,42 @@ def test_init_from_is_checked_against_the_configuration_and_says_what_will_train
     code, _, err = cli(["train", config, "--init-from", model, "--out", tmp_path / "none"], capsys)
     assert code == 2 and f"--init-from {model}: the model holds 32 decisions" in err and "--allow-no-training" in err
     assert not (tmp_path / "none").exists() or not os.listdir(tmp_path / "none")
-    code, out, _ = cli(["train", config, "--init-from", model, "--timesteps", "48", "--out", tmp_path / "more",
-                        "--quiet"], capsys)
+    code, out, _ = cli(
+        ["train", config, "--init-from", model, "--timesteps", "48", "--out", tmp_path / "more", "--quiet"], capsys
+    )
     assert code == 0 and f"starting from {model} (32 decisions): 16 decisions to train, to 48" in out
-    assert cli(["train", config, "--init-from", model, "--allow-no-training", "--out", tmp_path / "copy",
-                "--quiet"], capsys)[0] == 0
+    assert (
+        cli(
+            ["train", config, "--init-from", model, "--allow-no-training", "--out", tmp_path / "copy", "--quiet"],
+            capsys,
+        )[0]
+        == 0
+    )
 
     waypoint = tmp_path / "waypoint.yaml"  # the same algorithm and policy, another env id
     agent_file(waypoint, timesteps=16, env_id="emmi_gym/Explore-v0", env_extra={"max_decisions": 4})
     assert cli(["train", waypoint, "--out", tmp_path / "plans", "--quiet"], capsys)[0] == 0
-    code, _, err = cli(["train", config, "--init-from", tmp_path / "plans" / "model.zip", "--timesteps", "64",
-                        "--out", tmp_path / "mixed"], capsys)
-    assert code == 2 and (f"a model of emmi_gym/Explore-v0 (its configuration {tmp_path / 'plans' / 'config.yaml'}),"
-                          f" but {config} trains on emmi_gym/ExploreVelocity-v0") in err, err
+    code, _, err = cli(
+        [
+            "train",
+            config,
+            "--init-from",
+            tmp_path / "plans" / "model.zip",
+            "--timesteps",
+            "64",
+            "--out",
+            tmp_path / "mixed",
+        ],
+        capsys,
+    )
+    assert (
+        code == 2
+        and (
+            f"a model of emmi_gym/Explore-v0 (its configuration {tmp_path / 'plans' / 'config.yaml'}),"
+            f" but {config} trains on emmi_gym/ExploreVelocity-v0"
+        )
+        in err
+    ), err
     larger = agent_file(tmp_path / "larger.yaml", timesteps=64, env_extra={"obs_size": 48})
     code, _, err = cli(["train", larger, "--init-from", model, "--out", tmp_path / "larger"], capsys)
     assert code == 2 and f"--init-from {model}: the model's observation space is Dict(" in err, err
@@ -155,8 +199,11 @@ def poison_the_third_update(monkeypatch):
 
 
 def test_training_stops_at_the_first_non_finite_weight_and_keeps_the_last_good_checkpoint(tmp_path, monkeypatch):
-    config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=96, checkpoint_freq=32,
-                                            eval={"freq": 0, "episodes": 1, "seed": 500}))
+    config = parse_agent_config(
+        config_dict(
+            "PPO", hyper=PPO_SMALL, timesteps=96, checkpoint_freq=32, eval={"freq": 0, "episodes": 1, "seed": 500}
+        )
+    )
     poison_the_third_update(monkeypatch)  # the update after decision 48
     with pytest.raises(NonFiniteError) as error:
         train(config, tmp_path, progress=False)
@@ -185,21 +232,34 @@ def test_cloning_stops_at_a_non_finite_loss_and_writes_no_model(tmp_path):
     observations = {key: np.zeros((4, *sub.shape), sub.dtype) for key, sub in space.spaces.items()}
     observations["pose"][2, 1] = np.inf
     demonstrations = Demonstrations(observations, np.ones((4, 8), bool), np.zeros(4, np.int64), 1)
-    with pytest.raises(NonFiniteError, match=r"cloning stopped in epoch 1: the observations of the demonstrated "
-                                             r"decisions \[2\] are not finite"):
+    with pytest.raises(
+        NonFiniteError,
+        match=r"cloning stopped in epoch 1: the observations of the demonstrated "
+        r"decisions \[2\] are not finite",
+    ):
         clone_run(config, demonstrations, tmp_path, epochs=2)
     assert not (tmp_path / "model.zip").exists()
 
 
 @pytest.mark.parametrize("obs_size", [36, 256])
-@pytest.mark.parametrize("algorithm, policy, env_id, env_kwargs", [
-    ("PPO", "MultiInputPolicy", "emmi_gym/ExploreVelocity-v0", {}),
-    ("PPO", "CnnPolicy", "emmi_gym/ExploreVelocity-v0", {"observation": "image"}),
-    ("MaskablePPO", "TargetScoringPolicy", "emmi_gym/LoopCorridor-v0", {}),
-])
+@pytest.mark.parametrize(
+    "algorithm, policy, env_id, env_kwargs",
+    [
+        ("PPO", "MultiInputPolicy", "emmi_gym/ExploreVelocity-v0", {}),
+        ("PPO", "CnnPolicy", "emmi_gym/ExploreVelocity-v0", {"observation": "image"}),
+        ("MaskablePPO", "TargetScoringPolicy", "emmi_gym/LoopCorridor-v0", {}),
+    ],
+)
 def test_every_policy_builds_and_acts_at_the_bounds_of_obs_size(algorithm, policy, env_id, env_kwargs, obs_size):
-    config = parse_agent_config({"env": {"id": env_id, "kwargs": {"particles": 1, "obs_size": obs_size, **env_kwargs}},
-                                 "algorithm": algorithm, "policy": policy, "n_envs": 1, "vec_env": "dummy"})
+    config = parse_agent_config(
+        {
+            "env": {"id": env_id, "kwargs": {"particles": 1, "obs_size": obs_size, **env_kwargs}},
+            "algorithm": algorithm,
+            "policy": policy,
+            "n_envs": 1,
+            "vec_env": "dummy",
+        }
+    )
     env = gym.make(config.env_id, **config.env_kwargs)
     model = model_of(config, env)
     observation, _ = env.reset(seed=0)
@@ -236,14 +296,24 @@ def assert_record_adds_up(record: dict, decisions: int) -> None:
 
 
 def test_a_run_killed_at_random_moments_resumes_to_a_loadable_model_whose_record_adds_up(tmp_path):
-    data = config_dict("PPO", hyper=PPO_SMALL, timesteps=10**6, checkpoint_freq=16,
-                       eval={"freq": 0, "episodes": 1, "seed": 500})
+    data = config_dict(
+        "PPO", hyper=PPO_SMALL, timesteps=10**6, checkpoint_freq=16, eval={"freq": 0, "episodes": 1, "seed": 500}
+    )
     (tmp_path / "agent.yaml").write_text(yaml.safe_dump(data))
     folder = tmp_path / "run"
     moments = random.Random(49)
     for part in range(3):
-        argv = [sys.executable, "-m", "emmi_gym.cli", "train", str(tmp_path / "agent.yaml"), "--out", str(folder),
-                "--quiet", *(["--resume"] if part else [])]
+        argv = [
+            sys.executable,
+            "-m",
+            "emmi_gym.cli",
+            "train",
+            str(tmp_path / "agent.yaml"),
+            "--out",
+            str(folder),
+            "--quiet",
+            *(["--resume"] if part else []),
+        ]
         earlier = set(checkpoints(folder))
         process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         try:

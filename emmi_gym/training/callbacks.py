@@ -16,7 +16,6 @@ from ..experiments.episodes import GROUND_TRUTH, nanmean
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..inputs.paths import write_text_atomically
 
-
 #: The folder, inside the evaluation's, where SB3 writes its files before they are renamed into place.
 STAGING = ".writing"
 

@@ -44,8 +44,10 @@ def check_new_run_folder(folder: Path, overwrite: bool, *, resumable: bool = Tru
     if entries and not overwrite:
         shown = ", ".join(entries[:6]) + (", ..." if len(entries) > 6 else "")
         resume = "continue the run in it with --resume, " if resumable else ""
-        raise RunError(f"{folder} is not empty (it holds {shown}): a new run would overwrite what is there; "
-                       f"{resume}replace it with --overwrite, or give another --out")
+        raise RunError(
+            f"{folder} is not empty (it holds {shown}): a new run would overwrite what is there; "
+            f"{resume}replace it with --overwrite, or give another --out"
+        )
 
 
 def clear_run_folder(folder: Path, names=RUN_FILES) -> None:
@@ -83,14 +85,18 @@ def _resolved_env_options(env_id: str, kwargs: dict) -> dict:
 def differing_fields(own: AgentConfig, other: AgentConfig, ignore=RESUMABLE_CHANGES) -> dict[str, tuple]:
     """The fields (dotted names) where ``other`` differs from ``own``, outside ``ignore``: ``{name: (own's,
     other's)}``; the env options compared as the env resolves them."""
+
     def comparable(config: AgentConfig) -> dict:
         data = {k: v for k, v in config.as_yaml_dict().items() if k not in ignore}
         data["env"] = {"id": config.env_id, "kwargs": _resolved_env_options(config.env_id, config.env_kwargs)}
         return _flat(data)
 
     mine, theirs = comparable(own), comparable(other)  # a field one lacks counts as None (absent)
-    return {name: (mine.get(name), theirs.get(name)) for name in sorted(set(mine) | set(theirs))
-            if mine.get(name) != theirs.get(name)}
+    return {
+        name: (mine.get(name), theirs.get(name))
+        for name in sorted(set(mine) | set(theirs))
+        if mine.get(name) != theirs.get(name)
+    }
 
 
 def check_resumable(config: AgentConfig, folder: Path) -> None:
@@ -99,17 +105,24 @@ def check_resumable(config: AgentConfig, folder: Path) -> None:
     own_path = folder / "config.yaml"
     if not own_path.is_file():
         what = f"holds {', '.join(folder_entries(folder)[:6])}" if folder_entries(folder) else "is empty"
-        raise RunError(f"--resume: {folder} holds no run to continue (no config.yaml; the folder {what})"
-                       if folder.is_dir() else f"--resume: {folder} does not exist")
+        raise RunError(
+            f"--resume: {folder} holds no run to continue (no config.yaml; the folder {what})"
+            if folder.is_dir()
+            else f"--resume: {folder} does not exist"
+        )
     differing = differing_fields(load_agent_config(own_path), config)
     if differing:
         absent = "(absent)"
-        shown = "; ".join(f"{name}: {absent if mine is None else excerpt(mine)} in the run, "
-                          f"{absent if theirs is None else excerpt(theirs)} in {config.source}"
-                          for name, (mine, theirs) in list(differing.items())[:8])
-        raise RunError(f"--resume: {config.source} is not the configuration of the run in {folder} ({own_path}): "
-                       f"{shown}. A resumed run may change only {', '.join(RESUMABLE_CHANGES)}; resume with "
-                       f"{own_path} itself, or start a new run with another --out")
+        shown = "; ".join(
+            f"{name}: {absent if mine is None else excerpt(mine)} in the run, "
+            f"{absent if theirs is None else excerpt(theirs)} in {config.source}"
+            for name, (mine, theirs) in list(differing.items())[:8]
+        )
+        raise RunError(
+            f"--resume: {config.source} is not the configuration of the run in {folder} ({own_path}): "
+            f"{shown}. A resumed run may change only {', '.join(RESUMABLE_CHANGES)}; resume with "
+            f"{own_path} itself, or start a new run with another --out"
+        )
 
 
 @dataclass(frozen=True)
@@ -134,8 +147,15 @@ class RunStart:
         return f"{verb} {self.model} ({decisions} decisions): {to_train}"
 
 
-def plan_run(config: AgentConfig, folder, *, resume: bool = False, overwrite: bool = False, init_from=None,
-             allow_no_training: bool = False) -> RunStart:
+def plan_run(
+    config: AgentConfig,
+    folder,
+    *,
+    resume: bool = False,
+    overwrite: bool = False,
+    init_from=None,
+    allow_no_training: bool = False,
+) -> RunStart:
     """Make every check of a run of ``config`` into ``folder`` before anything is written (see the module
     docstring) and say where it starts."""
     from .train import latest_checkpoint, training_record
@@ -145,8 +165,10 @@ def plan_run(config: AgentConfig, folder, *, resume: bool = False, overwrite: bo
     if resume and overwrite:
         raise RunError("--resume continues the run in the folder and --overwrite replaces it: give one of them")
     if resume and init_from is not None:
-        raise RunError("--init-from starts a new run from a model; --resume continues the run in the folder "
-                       "(which remembers the model it started from): give one of them")
+        raise RunError(
+            "--init-from starts a new run from a model; --resume continues the run in the folder "
+            "(which remembers the model it started from): give one of them"
+        )
     if not resume:
         check_new_run_folder(folder, overwrite)
         if init_from is None:

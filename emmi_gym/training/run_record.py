@@ -42,13 +42,25 @@ def earlier_parts(record: dict | None, decisions: int) -> list[dict]:
         return []
     parts = record.get("parts")
     if parts is None:
-        parts = [{"start": int(record.get("init_decisions", 0)), "end": int(record["timesteps"]),
-                  "wall_seconds": float(record.get("wall_seconds", 0.0))}]
+        parts = [
+            {
+                "start": int(record.get("init_decisions", 0)),
+                "end": int(record["timesteps"]),
+                "wall_seconds": float(record.get("wall_seconds", 0.0)),
+            }
+        ]
     return [dict(part, end=min(int(part["end"]), decisions)) for part in parts if int(part["start"]) < decisions]
 
 
-def record_training(run_dir, earlier: list[dict], start: int, decisions: int, wall_seconds: float | None,
-                    init_from=None, init_decisions: int = 0) -> None:
+def record_training(
+    run_dir,
+    earlier: list[dict],
+    start: int,
+    decisions: int,
+    wall_seconds: float | None,
+    init_from=None,
+    init_decisions: int = 0,
+) -> None:
     """Write :data:`TRAINING_RECORD` into ``run_dir``: the ``earlier`` parts and this one, from ``start`` to
     ``decisions`` in ``wall_seconds`` (None: no part yet, a run that starts from ``init_from``)."""
     import torch
@@ -57,11 +69,23 @@ def record_training(run_dir, earlier: list[dict], start: int, decisions: int, wa
     from .. import __version__
     from ..inputs.paths import write_text_atomically
 
-    parts = [*earlier, *([] if wall_seconds is None else
-                         [{"start": int(start), "end": int(decisions), "wall_seconds": round(wall_seconds, 1)}])]
-    record = {"timesteps": int(decisions), "wall_seconds": round(sum(p["wall_seconds"] for p in parts), 1),
-              "parts": parts, "finished": time.strftime("%Y-%m-%d %H:%M %Z"), "machine": machine_description(),
-              "emmi_gym": __version__, "torch": str(torch.__version__)}
+    parts = [
+        *earlier,
+        *(
+            []
+            if wall_seconds is None
+            else [{"start": int(start), "end": int(decisions), "wall_seconds": round(wall_seconds, 1)}]
+        ),
+    ]
+    record = {
+        "timesteps": int(decisions),
+        "wall_seconds": round(sum(p["wall_seconds"] for p in parts), 1),
+        "parts": parts,
+        "finished": time.strftime("%Y-%m-%d %H:%M %Z"),
+        "machine": machine_description(),
+        "emmi_gym": __version__,
+        "torch": str(torch.__version__),
+    }
     if init_from is not None:
         record.update(init_from=str(init_from), init_decisions=int(init_decisions))
     write_text_atomically(Path(run_dir) / TRAINING_RECORD, yaml.safe_dump(record, sort_keys=False))

@@ -39,23 +39,31 @@ def check_init_from(path, config: AgentConfig, allow_no_training: bool = False) 
     if own_config is not None:
         env_id = env_of_file(own_config)[0]
         if env_id != config.env_id:
-            raise RunError(f"--init-from {path}: a model of {env_id} (its configuration {own_config}), but "
-                           f"{config.source} trains on {config.env_id}: start from a model of {config.env_id}, or "
-                           f"train with a configuration of {env_id}")
+            raise RunError(
+                f"--init-from {path}: a model of {env_id} (its configuration {own_config}), but "
+                f"{config.source} trains on {config.env_id}: start from a model of {config.env_id}, or "
+                f"train with a configuration of {env_id}"
+            )
     env = make_env(config.env_id, config.env_kwargs)
     try:
-        spaces = {"observation": (model.observation_space, env.observation_space),
-                  "action": (model.action_space, env.action_space)}
+        spaces = {
+            "observation": (model.observation_space, env.observation_space),
+            "action": (model.action_space, env.action_space),
+        }
     finally:
         env.close()
     for name, (saved, wanted) in spaces.items():
         if saved != wanted:
-            raise RunError(f"--init-from {path}: the model's {name} space is {saved}, but the env of "
-                           f"{config.source} ({config.env_id} with its env.kwargs) has {wanted}")
+            raise RunError(
+                f"--init-from {path}: the model's {name} space is {saved}, but the env of "
+                f"{config.source} ({config.env_id} with its env.kwargs) has {wanted}"
+            )
     decisions = int(model.num_timesteps)
     if decisions >= config.total_timesteps and not allow_no_training:
-        raise RunError(f"--init-from {path}: the model holds {decisions} decisions and {config.source} trains to "
-                       f"total_timesteps {config.total_timesteps} (its decisions count towards them): no decision "
-                       f"would train. Give a larger budget (--timesteps above {decisions}), or pass "
-                       "--allow-no-training to copy the model into a new run as it is")
+        raise RunError(
+            f"--init-from {path}: the model holds {decisions} decisions and {config.source} trains to "
+            f"total_timesteps {config.total_timesteps} (its decisions count towards them): no decision "
+            f"would train. Give a larger budget (--timesteps above {decisions}), or pass "
+            "--allow-no-training to copy the model into a new run as it is"
+        )
     return WarmStart(path, decisions)
