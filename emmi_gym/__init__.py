@@ -19,6 +19,12 @@ def _register() -> None:
 
 _register()
 
-from . import pretrained  # noqa: E402  (after the ids are registered; it imports nothing heavy)
 
-__all__ = ["__version__", "pretrained"]
+def __getattr__(name: str):
+    """``emmi_gym.pretrained`` without importing it first (PEP 562): the shipped agents' module, loaded on
+    first use (the training code it reaches imports this package back)."""
+    if name == "pretrained":
+        import importlib
+
+        return importlib.import_module(f"{__name__}.pretrained")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -17,7 +17,7 @@ from ..experiments.report import write_csv
 from ..inputs import arguments
 from ..inputs.paths import file_kind, output_folder
 from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings, format_table
-from .train import checkpoints, is_whole_checkpoint, load_run_config, save_atomically
+from .train import checkpoints, is_whole_checkpoint, load_run_config
 
 #: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
 MEASURES = ("return", "oracle_accuracy", "wall_consistency", "ate", "map_accuracy", "coverage", "reached_target",
@@ -88,8 +88,8 @@ def score_runs(args: argparse.Namespace) -> int:
     for run in args.runs:
         curve, rows = score_checkpoints(run, OWN_WORLD if args.world is None else args.world, args.episodes,
                                         args.seed, workers=args.workers)
-        save_atomically(lambda target, rows=curve: write_csv(target, rows), run / CURVE_FILE)
-        save_atomically(lambda target, rows=rows: write_csv(target, rows), run / EPISODES_FILE)
+        write_csv(run / CURVE_FILE, curve)
+        write_csv(run / EPISODES_FILE, rows)
         print(f"{run}: {len(curve)} checkpoints x {args.episodes} episodes: wrote {run / CURVE_FILE} and "
               f"{run / EPISODES_FILE}\n{format_table(curve)}\n", flush=True)
     return 0

@@ -27,8 +27,7 @@ import numpy as np
 
 from ..inputs import arguments
 from ..inputs.csv_files import CsvFileError, read_csv_file
-from ..inputs.paths import output_file
-from .train import save_atomically
+from ..inputs.paths import output_file, write_atomically
 
 MEASURES = {"oracle_accuracy": "accuracy against the oracle map", "ate": "ATE (m)",
             "sim_steps": "simulator steps", "coverage": "coverage"}
@@ -119,7 +118,7 @@ def draw(groups: dict[str, list[dict]], baselines: dict[str, dict[str, float]], 
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
     fig.tight_layout()
-    save_atomically(lambda target: fig.savefig(target, dpi=100, format=out.suffix[1:].lower()), out)
+    write_atomically(out, lambda target: fig.savefig(target, dpi=100, format=out.suffix[1:].lower()))
     plt.close(fig)
 
 

@@ -6,8 +6,9 @@ unless told to ``overwrite`` it (which removes the files a run writes, :data:`RU
 nothing else); ``resume`` continues the run in the folder only with the configuration it started
 with (what may change: :data:`RESUMABLE_CHANGES`); ``init_from`` (a model a new run starts from,
 rl-baselines3-zoo's ``--trained-agent``) must be a model of the configuration's algorithm, env id
-and spaces, with finite weights, and leave decisions to train. :func:`plan_run` makes every check
-and says where the run starts.
+and spaces, with finite weights, and leave decisions to train
+(:mod:`~emmi_gym.training.warm_start`). :func:`~emmi_gym.training.train.plan_run` makes every
+check and says where the run starts.
 """
 
 from __future__ import annotations
@@ -30,6 +31,19 @@ RESUMABLE_CHANGES = ("total_timesteps", "n_envs", "vec_env", "eval", "checkpoint
 class RunError(ValueError):
     """A run cannot start as asked (a folder in use, a configuration or model that does not match); says why
     and what to do."""
+
+
+def run_config_path(model_path) -> Path | None:
+    """The ``config.yaml`` written beside a model (in its folder or the run folder above a checkpoint), if any."""
+    model_path = Path(model_path)
+    return next(
+        (
+            folder / "config.yaml"
+            for folder in (model_path.parent, model_path.parent.parent)
+            if (folder / "config.yaml").is_file()
+        ),
+        None,
+    )
 
 
 def folder_entries(folder: Path) -> list[str]:
@@ -145,40 +159,3 @@ class RunStart:
             return f"a fresh model: {to_train}"
         verb = "starting from" if self.model == self.init_from else "continuing from"
         return f"{verb} {self.model} ({decisions} decisions): {to_train}"
-
-
-def plan_run(
-    config: AgentConfig,
-    folder,
-    *,
-    resume: bool = False,
-    overwrite: bool = False,
-    init_from=None,
-    allow_no_training: bool = False,
-) -> RunStart:
-    """Make every check of a run of ``config`` into ``folder`` before anything is written (see the module
-    docstring) and say where it starts."""
-    from .train import latest_checkpoint, training_record
-    from .warm_start import check_init_from
-
-    folder = Path(folder)
-    if resume and overwrite:
-        raise RunError("--resume continues the run in the folder and --overwrite replaces it: give one of them")
-    if resume and init_from is not None:
-        raise RunError(
-            "--init-from starts a new run from a model; --resume continues the run in the folder "
-            "(which remembers the model it started from): give one of them"
-        )
-    if not resume:
-        check_new_run_folder(folder, overwrite)
-        if init_from is None:
-            return RunStart(None, overwrite=overwrite)
-        start = check_init_from(init_from, config, allow_no_training)
-        return RunStart(start.path, start.path, start.decisions, overwrite=overwrite)
-    check_resumable(config, folder)
-    record = training_record(folder) or {}
-    init_path = Path(record["init_from"]) if record.get("init_from") is not None else None
-    checkpoint = latest_checkpoint(folder)
-    if checkpoint is None and init_path is not None:  # stopped before its first checkpoint: from its start again
-        checkpoint = check_init_from(init_path, config, allow_no_training=True).path
-    return RunStart(checkpoint, init_path, int(record.get("init_decisions", 0)), record)

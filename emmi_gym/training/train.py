@@ -42,9 +42,17 @@ from .callbacks import NonFiniteError, StopOnNonFinite, check_weights, eval_call
 from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument, sb3_policy_kwargs
 from .model_files import load_model_file
 from .records import read_training_record
-from .run_folder import RunStart, clear_run_folder, plan_run
+from .run_folder import (
+    RunError,
+    RunStart,
+    check_new_run_folder,
+    check_resumable,
+    clear_run_folder,
+    run_config_path,
+)
 from .run_record import TRAINING_RECORD, earlier_parts, record_training
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
+from .warm_start import check_init_from
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
 OFF_POLICY = ("DQN", "SAC")
@@ -307,13 +315,6 @@ def training_record(run_dir) -> dict | None:
     return read_training_record(path) if path.exists() else None
 
 
-def run_config_path(model_path) -> Path | None:
-    """The ``config.yaml`` written beside a model (in its folder or the run folder above a checkpoint), if any."""
-    model_path = Path(model_path)
-    return next((folder / "config.yaml" for folder in (model_path.parent, model_path.parent.parent)
-                 if (folder / "config.yaml").is_file()), None)
-
-
 def load_run_config(model_path) -> AgentConfig:
     """The configuration written beside a model (in its folder or the run folder above a checkpoint)."""
     path = run_config_path(model_path)
@@ -350,11 +351,36 @@ def model_of(config: AgentConfig, env, **kwargs):
                                                                  **sb3_hyperparameters(config, env))
 
 
+def plan_run(config: AgentConfig, folder, *, resume: bool = False, overwrite: bool = False, init_from=None,
+             allow_no_training: bool = False) -> RunStart:
+    """Make every check of a run of ``config`` into ``folder`` before anything is written
+    (:mod:`~emmi_gym.training.run_folder`, :mod:`~emmi_gym.training.warm_start`) and say where it starts."""
+    folder = Path(folder)
+    if resume and overwrite:
+        raise RunError("--resume continues the run in the folder and --overwrite replaces it: give one of them")
+    if resume and init_from is not None:
+        raise RunError("--init-from starts a new run from a model; --resume continues the run in the folder "
+                       "(which remembers the model it started from): give one of them")
+    if not resume:
+        check_new_run_folder(folder, overwrite)
+        if init_from is None:
+            return RunStart(None, overwrite=overwrite)
+        start = check_init_from(init_from, config, allow_no_training)
+        return RunStart(start.path, start.path, start.decisions, overwrite=overwrite)
+    check_resumable(config, folder)
+    record = training_record(folder) or {}
+    init_path = Path(record["init_from"]) if record.get("init_from") is not None else None
+    checkpoint = latest_checkpoint(folder)
+    if checkpoint is None and init_path is not None:  # stopped before its first checkpoint: from its start again
+        checkpoint = check_init_from(init_path, config, allow_no_training=True).path
+    return RunStart(checkpoint, init_path, int(record.get("init_decisions", 0)), record)
+
+
 def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool = False, progress: bool = True,
           verbose: int = 0, ray_address: str | None = None, init_from=None, allow_no_training: bool = False,
           report=None) -> TrainResult:
     """Train ``config`` into ``run_dir`` (see the module docstring), after every check of
-    :func:`~emmi_gym.training.run_folder.plan_run` (a new run needs an empty folder, or ``overwrite``,
+    :func:`plan_run` (a new run needs an empty folder, or ``overwrite``,
     which first removes the run files there); with ``resume``, continue the folder's run from its
     latest checkpoint up to ``config.total_timesteps``; ``ray_address``: the Ray cluster of ``vec_env:
     ray`` (see :func:`make_vec_env`). ``init_from``: a model (of the same algorithm, env id, spaces and

@@ -12,6 +12,7 @@ from pathlib import Path
 from .callbacks import first_non_finite
 from .config import AgentConfig, env_of_file
 from .model_files import ModelFileError, load_model_file
+from .run_folder import RunError, run_config_path
 
 
 @dataclass(frozen=True)
@@ -27,8 +28,9 @@ def check_init_from(path, config: AgentConfig, allow_no_training: bool = False) 
     :class:`~emmi_gym.training.model_files.ModelFileError` naming the file if it is not one that loads or
     its weights are not finite, :class:`~emmi_gym.training.run_folder.RunError` naming the model and the
     configuration if they do not match, or if no decision would train (unless ``allow_no_training``)."""
-    from .run_folder import RunError
-    from .train import make_env, run_config_path
+    import gymnasium as gym
+
+    import emmi_gym  # noqa: F401  (registers the ids)
 
     path = Path(path)
     model = load_model_file(path, config.algorithm, device="cpu")
@@ -44,7 +46,7 @@ def check_init_from(path, config: AgentConfig, allow_no_training: bool = False) 
                 f"{config.source} trains on {config.env_id}: start from a model of {config.env_id}, or "
                 f"train with a configuration of {env_id}"
             )
-    env = make_env(config.env_id, config.env_kwargs)
+    env = gym.make(config.env_id, **config.env_kwargs)
     try:
         spaces = {
             "observation": (model.observation_space, env.observation_space),
