@@ -1,6 +1,6 @@
 """Environment steps per second for each id at default settings, and where the time goes.
 
-    python scripts/bench_env.py [--decisions 60] [--velocity-steps 10000] [--repeats 3] [--ids ExploreVelocity-v0 ...]
+    python benchmarks/bench_env.py [--decisions 60] [--velocity-steps 10000] [--repeats 3] [--ids ExploreVelocity-v0 ...]
                                 [--options '{"slam": {"linear_update": 1.0}}'] [--against DIR]
                                 [--with-resets] [--threads 1]
 

@@ -1,6 +1,6 @@
 """Time the RBPF on a long-range laser over a building-sized area: 361 beams, 180 degrees, 30 m.
 
-    python scripts/bench_large_map.py [--particles 15] [--resolution 0.05] [--metres 323]
+    python benchmarks/bench_large_map.py [--particles 15] [--resolution 0.05] [--metres 323]
                                       [--data ../shared/datasets/carmen] [--out aces_tour.log] [--threads N]
                                       [--slam '{"revisit_beams": 30}'] [--filter-seeds 1 2 3 4 5 6]
 

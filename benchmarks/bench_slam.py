@@ -1,6 +1,6 @@
 """Time RBPF updates: the median per update and its split, and how the cost grows with M and beams.
 
-    python scripts/bench_slam.py [--particles 15] [--table] [--extents]
+    python benchmarks/bench_slam.py [--particles 15] [--table] [--extents]
 
 Data: the loop_corridor loop (start -> decision -> start) recorded once with the
 default laser (360 deg, 180 beams, 8 m); the filter runs on a fixed 25 m x 20 m grid

@@ -1,7 +1,7 @@
 """Decisions per second of ``emmi-gym train`` against what its workers could make alone, where the wall
 time goes, and the efficiency to expect on more cores.
 
-    python scripts/bench_train.py [--config agents/ppo_plans_emmi.yaml] [--timesteps N] [--n-envs W]
+    python benchmarks/bench_train.py [--config agents/ppo_plans_emmi.yaml] [--timesteps N] [--n-envs W]
                                   [--vec-env workers|subproc|dummy] [--single N] [--out DIR]
 
 1. **One worker alone**: a rollout worker in a process of its own (kernels and torch on one thread,

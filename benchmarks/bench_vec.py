@@ -1,6 +1,6 @@
 """Environment steps per second of vectorised envs against a single process: which to use when.
 
-    python scripts/bench_vec.py [--env-id emmi_gym/ExploreVelocity-v0] [--seconds 20] [--envs 2 4 8]
+    python benchmarks/bench_vec.py [--env-id emmi_gym/ExploreVelocity-v0] [--seconds 20] [--envs 2 4 8]
 
 For each setting: reset (seeded), then random actions until ``--seconds`` have passed, counting
 env steps over all envs (episode resets inside the vector envs are counted in the time). Waypoint

@@ -1,6 +1,6 @@
 """Time loading worlds, the simulated laser and one simulator control step, per kind of world.
 
-    python scripts/bench_world.py [--repeats 500]
+    python benchmarks/bench_world.py [--repeats 500]
 
 Prints medians: loading a 640 x 480 DungeonMaps plan (image -> walls), then for each
 world (the hand-made loop_corridor, a generated lattice world, a DungeonMaps plan, the

@@ -1,6 +1,6 @@
 """Build the worlds of the four real buildings from their corrected CARMEN logs.
 
-    python scripts/build_building_worlds.py [--data ../shared/datasets/carmen] [--resolution 0.1]
+    python benchmarks/build_building_worlds.py [--data ../shared/datasets/carmen] [--resolution 0.1]
 
 For each of intel, aces, csail and fr079: every scan of the corrected log is inserted at its
 corrected pose into one occupancy grid (the filter's sensor model; echoes beyond
@@ -68,7 +68,7 @@ def write_map_server(name: str, free: np.ndarray, occupied: np.ndarray, geometry
     Image.fromarray(np.flipud(pixels)).save(OUT / f"{name}.png", optimize=True)
     x0, y0 = geometry.origin_x + c0 * geometry.resolution, geometry.origin_y + r0 * geometry.resolution
     (OUT / f"{name}.yaml").write_text(
-        f"# built by scripts/build_building_worlds.py from {source} (corrected poses)\n"
+        f"# built by benchmarks/build_building_worlds.py from {source} (corrected poses)\n"
         f"name: {name}\nimage: {name}.png\nresolution: {geometry.resolution}\n"
         f"origin: [{x0:.3f}, {y0:.3f}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
         f"start: [{start[0]:.3f}, {start[1]:.3f}, {start[2]:.4f}]\n")

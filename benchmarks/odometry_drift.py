@@ -1,6 +1,6 @@
 """Dead-reckoning drift of the odometry presets around the loop_corridor loop.
 
-    python scripts/odometry_drift.py [--seeds 30] [--preset typical|good|poor|all]
+    python benchmarks/odometry_drift.py [--seeds 30] [--preset typical|good|poor|all]
 
 Drives the loop (start -> decision point -> back to the start, 74 m) twice on each seed
 and prints the odometry's position and heading errors once the robot has travelled 74 m

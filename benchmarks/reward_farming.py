@@ -1,6 +1,6 @@
 """What each reward variant pays for standing still, spinning in place and exploring.
 
-    python scripts/reward_farming.py [--seeds 5] [--steps 300] [--decisions 40]
+    python benchmarks/reward_farming.py [--seeds 5] [--steps 300] [--decisions 40]
 
 Velocity mode (one simulator step per action) on the hard configuration's worlds and
 sensors (ExplorePlans-v0's DungeonMaps plans, SICK LMS200 at 8 m, poor odometry): standing

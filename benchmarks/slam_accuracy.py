@@ -1,6 +1,6 @@
 """Accuracy of the RBPF round the loop_corridor loop, over seeds (the full version of tests/test_slam.py).
 
-    python scripts/slam_accuracy.py [--seeds 20] [--particles 15] [--slam '{"logodds_free": -0.7}']
+    python benchmarks/slam_accuracy.py [--seeds 20] [--particles 15] [--slam '{"logodds_free": -0.7}']
         [--laser '{"preset": "sick_lms200", "max_range": 8.0}'] [--odometry poor]
 
 The sensors default to the simulator's own (a 360-degree 8 m laser, typical odometry);

@@ -1,6 +1,6 @@
 """The RBPF on real laser logs: the radish-noisy set (Intel, ACES, CSAIL, Freiburg 079 x 3 odometry seeds).
 
-    python scripts/slam_benchmark.py [--data ../shared/datasets/radish-noisy] [--logs intel aces]
+    python benchmarks/slam_benchmark.py [--data ../shared/datasets/radish-noisy] [--logs intel aces]
         [--seeds 0 1 2] [--particles 15] [--resolution 0.05] [--max-range 30] [--preset radish-noisy]
         [--slam '{"insertion_range": 8}'] [--filter-seeds 0 1 2] [--out slam_benchmark] [--jobs 1]
         [--threads N] [--flaser-fov 180]

@@ -1,6 +1,6 @@
 """Episodes that run out of targets: how often a waypoint env leaves the robot nothing to go to.
 
-    python scripts/stuck_episodes.py [--env-id emmi_gym/Explore-v0] [--policy random] [--episodes 100]
+    python benchmarks/stuck_episodes.py [--env-id emmi_gym/Explore-v0] [--policy random] [--episodes 100]
 
 Plays ``--episodes`` episodes (seeds 0, 1, ...) with a scripted policy (``emmi_gym.policies``; the
 random one draws among the valid slots, seeded with the episode's seed) and counts the decisions

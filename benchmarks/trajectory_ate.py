@@ -1,6 +1,6 @@
 """ATE of a trajectory file against a CARMEN log's TRUEPOS lines (matched by timestamp), e.g. GMapping's.
 
-    python scripts/trajectory_ate.py LOG TRAJECTORY [--timing gfs_timing.txt]
+    python benchmarks/trajectory_ate.py LOG TRAJECTORY [--timing gfs_timing.txt]
 
 TRAJECTORY: rows of ``timestamp x y theta`` (GMapping's ``best_traj.txt`` from the bench
 patch of ``shared/anchors/gmapping``) or the TUM format ``timestamp x y z qx qy qz qw``

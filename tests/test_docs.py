@@ -43,7 +43,7 @@ def marked_table(text: str, marker: str) -> list[list[str]]:
 
 
 def load_generator():
-    spec = importlib.util.spec_from_file_location("gen_options_doc", ROOT / "scripts" / "gen_options_doc.py")
+    spec = importlib.util.spec_from_file_location("gen_options_doc", ROOT / "docs" / "_scripts" / "gen_options_doc.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -252,10 +252,11 @@ def test_contributing_sets_up_with_the_readme_test_command():
 
 def test_contributing_names_files_commands_and_markers_that_exist(pytestconfig):
     text = (ROOT / "CONTRIBUTING.md").read_text()
-    paths = set(re.findall(r"\b((?:scripts|tests|docs)/[\w./-]+\.(?:py|md))\b", text))
-    paths |= {f"scripts/{name}" for name in re.findall(r"`(\w+\.py)`", text)}
+    paths = set(re.findall(r"\b((?:scripts|benchmarks|tests|docs)/[\w./-]+\.(?:py|md))\b", text))
     paths |= set(re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", text))
     missing = sorted(p for p in paths if not (ROOT / p).exists())
+    missing += sorted(name for name in re.findall(r"`(\w+\.py)`", text)
+                      if not any((ROOT / folder / name).exists() for folder in ("scripts", "benchmarks")))
     assert not missing, f"CONTRIBUTING.md names files that do not exist: {missing}"
     parser = emmi_gym.cli.build_parser()
     for command in sorted(set(re.findall(r"`emmi-gym (\w+)", text))):

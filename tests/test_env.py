@@ -314,7 +314,7 @@ def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
 
 
 def test_spinning_in_place_farms_emmi_but_not_emmi_coverage():
-    """Fast version of scripts/reward_farming.py: 150 steps of spinning at the start of a plan with a 180-degree
+    """Fast version of benchmarks/reward_farming.py: 150 steps of spinning at the start of a plan with a 180-degree
     laser. Re-scanning raises EMMI (a mean over observed cells) well beyond the time cost; weighted by coverage
     the same rise pays little; standing still pays exactly the time cost under every variant."""
     spin, still = {}, {}

@@ -174,7 +174,7 @@ def test_a_half_circle_scanner_finds_the_frontier_behind_it():
 
 @pytest.mark.parametrize("name", ["intel", "aces", "csail", "fr079"])
 def test_real_buildings_load_by_name(name):
-    """The worlds built from the corrected logs (scripts/build_building_worlds.py) match their map images: the
+    """The worlds built from the corrected logs (benchmarks/build_building_worlds.py) match their map images: the
     free space reachable from the log's first pose is the building the robot saw."""
     world = load_world(name)
     assert world.source.endswith(f"buildings/{name}.yaml")

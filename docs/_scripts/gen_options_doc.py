@@ -1,7 +1,7 @@
 """Write docs/options.md, the reference of every option, from the configuration classes themselves.
 
-    python scripts/gen_options_doc.py            # rewrite docs/options.md
-    python scripts/gen_options_doc.py --check    # exit 1 if docs/options.md is out of date
+    python docs/_scripts/gen_options_doc.py            # rewrite docs/options.md
+    python docs/_scripts/gen_options_doc.py --check    # exit 1 if docs/options.md is out of date
 
 Each field is declared with ``emmi_gym.inputs.validation.option(default, check, help)``: the
 table shows its name, type, default, what the check accepts (the bounds) and the help line.
@@ -23,8 +23,8 @@ from emmi_gym.slam.config import RBPFConfig
 from emmi_gym.world import GeneratorConfig, LaserConfig, OdometryNoise
 from emmi_gym.world.presets import LASER_PRESETS, ODOMETRY_PRESETS
 
-OUT = Path(__file__).resolve().parent.parent / "docs" / "options.md"
-COMMAND = "python scripts/gen_options_doc.py"
+OUT = Path(__file__).resolve().parents[2] / "docs" / "options.md"
+COMMAND = "python docs/_scripts/gen_options_doc.py"
 
 #: (class, heading anchor text, how the options are given)
 SECTIONS = (

@@ -1,6 +1,6 @@
 """Draw the preview picture of each environment id for docs/envs/ (what ``env.render()`` shows).
 
-    python scripts/render_env_previews.py [--out docs/envs] [--seed 0] [--decisions 12] [--steps 600]
+    python docs/_scripts/render_env_previews.py [--out docs/envs] [--seed 0] [--decisions 12] [--steps 600]
 
 Waypoint ids: after ``reset`` and ``--decisions`` decisions of the frontier policy (ExplorePlans-v0: 40; LoopCorridor-v0:
 right after ``reset``, at the decision point); the velocity id: after ``--steps`` steps driving ahead

@@ -6,7 +6,7 @@ makes time spent in many short hops cheaper than the same time spent in one long
 and lets an agent postpone every cost by spending decisions that take no time. On
 ``LoopCorridor-v0`` that alone made nearest-frontier hopping (about 20 decisions) score
 above closing the loop (one 350-step drive) under the EMMI reward, although the loop
-closure earns more EMMI per unit of robot time (``scripts/reward_returns.py``).
+closure earns more EMMI per unit of robot time (``benchmarks/reward_returns.py``).
 
 In a semi-MDP the value after an option of duration tau is discounted by gamma**tau.
 Here ``gamma`` applies per ``unit`` simulator steps: after a step that took tau

@@ -5,9 +5,9 @@ and prints for each reward variant, time cost and discount each policy's mean re
 pairs of episodes the better final map also earned more, the within-episode correlation of return
 and final map quality, and the policy the reward prefers (emmi_gym/experiments/reward_alignment.py).
 
-    python scripts/reward_returns.py --worlds dungeon_maps/train --plans 12 \\
+    python benchmarks/reward_returns.py --worlds dungeon_maps/train --plans 12 \\
         --policies frontier active_loop_closing random --out results/alignment_train
-    python scripts/reward_returns.py --env emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 0 1 2 3 \\
+    python benchmarks/reward_returns.py --env emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 0 1 2 3 \\
         --policies close_loop_first explore_first frontier --discounts none 0.95 0.9@100
 
 ``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
