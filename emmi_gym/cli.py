@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from .commands import compare_policies, learning_curves, score_checkpoints
 from .inputs import arguments
 
 DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMMI reward: run the paper's A/B "
@@ -13,6 +14,9 @@ DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMM
 
 
 _integer, _number, _SEED, _EPISODES = arguments.integer, arguments.number, arguments.SEED, arguments.EPISODES
+#: Bounds of the A/B options, as the env's configuration bounds them (``slam.config.MAX_PARTICLES``,
+#: ``EnvConfig.max_decisions``), checked here, before the worker processes start.
+MAX_PARTICLES, MAX_DECISIONS = 1000, 1_000_000
 
 
 def _cmd_metrics(args: argparse.Namespace) -> int:
@@ -27,7 +31,8 @@ def _cmd_metrics(args: argparse.Namespace) -> int:
         print(" | ".join(f"{row[k]:>22.4f}" if isinstance(row[k], float) else f"{row[k]:>22}" for k in keys))
     agree, disagree = rows
     print(f"\nEMMI falls by {agree['emmi_bits'] - disagree['emmi_bits']:.3f} bits/cell when the particles disagree;")
-    print(f"the joint entropy's map term changes by {disagree['map_entropy_term_bits'] - agree['map_entropy_term_bits']:.3f} bits.")
+    change = disagree["map_entropy_term_bits"] - agree["map_entropy_term_bits"]
+    print(f"the joint entropy's map term changes by {change:.3f} bits.")
     return 0
 
 
@@ -96,7 +101,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
           f"{sum(r.resampled for r in result.rows)} resamplings")
     ate = result.ate()
     if ate is not None:
-        print(f"ATE of the best particle against TRUEPOS: {ate:.3f} m (dead reckoning {result.dead_reckoning_ate():.3f} m)")
+        print(f"ATE of the best particle against TRUEPOS: {ate:.3f} m "
+              f"(dead reckoning {result.dead_reckoning_ate():.3f} m)")
     for path in files.values():
         print(f"wrote {path}")
     return 0
@@ -133,12 +139,6 @@ def _cmd_ab(args: argparse.Namespace) -> int:
     from .world import load_world
     from .world.map_sets import WORLD_FAMILIES
 
-    for name in ("seeds", "particles", "max_decisions"):
-        if getattr(args, name) < (2 if name == "seeds" else 1):
-            raise ValueError(f"--{name.replace('_', '-')} must be at least {2 if name == 'seeds' else 1} "
-                             f"(intervals need two seeds), got {getattr(args, name)}")
-    if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers must be at least 1, got {args.workers}")
     output_folder(args.out)
     started = time.perf_counter()
     if args.sweep is not None:
@@ -155,7 +155,7 @@ def _cmd_ab(args: argparse.Namespace) -> int:
         check_world(load_world(args.world))
     setting = _ab_setting(args)
     settings = ab_settings(args.env_id, setting, args.particles, args.max_decisions)
-    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    seeds = arguments.seed_range(args)
     runs = run_ab(seeds, settings, workers=args.workers, progress=not args.quiet)
     elapsed = time.perf_counter() - started
     text = f"{args.env_id} ({setting_label(setting, setting)}), seeds {seeds.start}-{seeds.stop - 1}"
@@ -200,7 +200,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
           f"{out}/tb)")
     result = train(config, out, resume=args.resume, overwrite=args.overwrite, progress=not args.quiet,
-                   ray_address=None if args.ray in (None, "env") else args.ray, init_from=args.init_from,
+                   ray_address=arguments.ray_address(args), init_from=args.init_from,
                    allow_no_training=args.allow_no_training, report=print)
     if result.interrupted:
         print(f"\ninterrupted at {result.timesteps} steps: saved {result.model_path}; continue with --resume")
@@ -322,6 +322,7 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
 def _cmd_benchmark(args: argparse.Namespace) -> int:
     import time
 
+    from .concurrency.ray_cluster import LOCAL
     from .env.config import REWARDS
     from .inputs.paths import output_folder
     from .training.benchmark import run_benchmark, write_benchmark
@@ -334,19 +335,18 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     config = load_agent_config(args.config)
     if args.timesteps is None:
         args.timesteps = config.total_timesteps
-    for name in ("seeds", "timesteps", "episodes"):
-        if getattr(args, name) < 1:
-            raise ValueError(f"--{name} must be at least 1, got {getattr(args, name)}")
     started = time.perf_counter()
-    results = run_benchmark(config, args.rewards, range(args.seeds), args.timesteps, args.episodes, args.baselines,
-                            args.out, workers=args.workers, ray_address=args.ray, progress=not args.quiet,
-                            init_from=args.init_from, allow_no_training=args.allow_no_training, report=print)
+    ray_address = None if args.ray is None else arguments.ray_address(args) or LOCAL  # LOCAL: Ray's default too
+    results = run_benchmark(config, args.rewards, arguments.seed_range(args), args.timesteps, args.episodes,
+                            args.baselines, args.out, workers=args.workers, ray_address=ray_address,
+                            progress=not args.quiet, init_from=args.init_from,
+                            allow_no_training=args.allow_no_training, report=print)
     elapsed = time.perf_counter() - started
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
               f"{args.timesteps} training steps per agent"
               f"{f' (from the weights of {args.init_from})' if args.init_from else ''}, "
-              f"{args.seeds} seed(s) per reward, {args.episodes} held-out "
+              f"seeds {args.first_seed}-{args.first_seed + args.seeds - 1} per reward, {args.episodes} held-out "
               f"evaluation episodes each; {elapsed / 60:.1f} min wall time "
               f"({'Ray' if args.ray else 'local processes'}"
               f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}). "
@@ -360,14 +360,14 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
 
 
 def _add_ab_options(parser: argparse.ArgumentParser, seeds: int, particles: int, out: str) -> None:
-    parser.add_argument("--seeds", type=int, default=seeds, help=f"number of seeds (default {seeds})")
-    parser.add_argument("--first-seed", type=_SEED, default=0)
+    arguments.add_seed_range(parser, seeds, least=2)  # intervals need two seeds
     parser.add_argument("--env-id", default="emmi_gym/LoopCorridor-v0",
                         help="the env played from its decision point (default emmi_gym/LoopCorridor-v0)")
     parser.add_argument("--world", default=None,
                         help="built-in world or .yaml with places decision, target_a, target_b and a to_decision "
                              "route, or 'loop_order' (a generated world per seed; default: the env's)")
-    parser.add_argument("--particles", type=int, default=particles, help=f"RBPF particles (default {particles})")
+    parser.add_argument("--particles", type=_integer(1, MAX_PARTICLES), default=particles,
+                        help=f"RBPF particles (default {particles})")
     parser.add_argument("--odometry", default=None, metavar="PRESET",
                         help="odometry noise preset: good, typical, poor (default: the env's)")
     parser.add_argument("--odometry-scale", type=_number(0.0, 100.0), default=None, metavar="S",
@@ -385,8 +385,9 @@ def _add_ab_options(parser: argparse.ArgumentParser, seeds: int, particles: int,
                              "slam.likelihood_exponent=0.02); repeatable")
     parser.add_argument("--sweep", default=None, metavar="FILE",
                         help="run the grid of settings of a sweep file (YAML; see docs/ab.md) instead")
-    parser.add_argument("--max-decisions", type=int, default=40, help="waypoint decisions per run at most")
-    parser.add_argument("--workers", type=int, default=None, help="worker processes (default: one per core)")
+    parser.add_argument("--max-decisions", type=_integer(1, MAX_DECISIONS), default=40,
+                        help="waypoint decisions per run at most (default 40)")
+    arguments.add_workers(parser)
     parser.add_argument("--out", default=out, help=f"output folder (default {out})")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=_cmd_ab)
@@ -420,10 +421,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--allow-no-training", action="store_true",
                     help="with --init-from: accept a model that already holds the configuration's total_timesteps "
                          "(copy it into a new run without training)")
-    tr.add_argument("--ray", nargs="?", const="env", default=None, metavar="ADDRESS",
-                    help="run the env workers as Ray actors (vec_env: ray_workers, or ray for vec_env subproc and "
-                         "dummy) on the cluster at ADDRESS ('local': a Ray instance on this machine; no ADDRESS: "
-                         "RAY_ADDRESS, else local)")
+    arguments.add_ray(tr, "run the env workers as Ray actors (vec_env: ray_workers, or ray for vec_env subproc "
+                          "and dummy)")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
     _torch_threads_option(tr, "1 beside rollout workers and env subprocesses; one per core when the envs run "
                               "in this process")
@@ -438,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--demos", nargs="+", default=None, metavar="NPZ",
                     help="demonstrations.npz files to fit instead of playing episodes")
     cl.add_argument("--epochs", type=_integer(1), default=20)
-    cl.add_argument("--workers", type=_integer(1), default=None, help="worker processes (default one per core)")
+    arguments.add_workers(cl)
     cl.add_argument("--out", required=True, help="folder for model.zip, config.yaml, demonstrations.npz, clone.yaml")
     cl.add_argument("--overwrite", action="store_true",
                     help="write into a folder that is not empty, replacing an earlier clone's files there")
@@ -458,8 +457,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--baselines", nargs="*", default=[], metavar="POLICY",
                     help="scripted policies played on the same episodes, paired with the model, with 95%% "
                          "intervals (e.g. frontier active_loop_closing)")
-    ev.add_argument("--workers", type=_integer(1), default=None, help="worker processes with --world or --baselines "
-                                                                "(default one per core)")
+    arguments.add_workers(ev)
     ev.add_argument("--out", default=None, metavar="DIR",
                     help="with --world or --baselines: write episodes.csv, summary.md, front.png (map quality "
                          "against robot time) and maps.png (one episode's maps, where the model went back) here")
@@ -473,8 +471,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--config", default="agents/ppo_emmi.yaml",
                        help="the agent configuration whose reward is varied (default agents/ppo_emmi.yaml)")
     bench.add_argument("--rewards", nargs="+", default=["emmi", "pose_entropy", "joint_entropy", "coverage"])
-    bench.add_argument("--seeds", type=int, default=3, help="training seeds per reward variant")
-    bench.add_argument("--timesteps", type=int, default=None,
+    arguments.add_seed_range(bench, 3)
+    bench.add_argument("--timesteps", type=_integer(1), default=None,
                        help="training steps per agent (default: the configuration's total_timesteps)")
     bench.add_argument("--episodes", type=_EPISODES, default=10, help="held-out evaluation episodes per agent")
     bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
@@ -484,9 +482,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--allow-no-training", action="store_true",
                        help="with --init-from: accept a model that already holds --timesteps decisions (the agents "
                             "are then that model, evaluated under each reward's env)")
-    bench.add_argument("--workers", type=int, default=None, help="local worker processes (default one per core)")
-    bench.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
-                       help="run on Ray: a cluster address, or none for a local instance")
+    arguments.add_workers(bench)
+    arguments.add_ray(bench, "run the agents' training and evaluation as Ray tasks instead of local processes")
     bench.add_argument("--out", default="benchmark_out")
     bench.add_argument("--quiet", action="store_true", help="no progress bar")
     bench.set_defaults(func=_cmd_benchmark)
@@ -526,6 +523,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--out", default="replay_out", help="folder for metrics.csv and the PNGs")
     rep.add_argument("--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=_cmd_replay)
+
+    for command in (score_checkpoints, learning_curves, compare_policies):
+        command.add_parser(sub)
     return parser
 
 
@@ -534,7 +534,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, KeyError, FileNotFoundError, FileExistsError) as exc:  # bad input: a message, not a traceback
+    except (ValueError, KeyError, OSError) as exc:  # bad input, a file or folder: a message, not a traceback
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         parser.exit(2, f"emmi-gym {args.command}: error: {message}\n")
 

@@ -121,7 +121,7 @@ def _bad_crc(model: Path, to: Path) -> Path:
 def training_probes(folder: Path) -> list[Probe]:
     """Make the inputs (R trained here, ~30 s) and return the probes."""
     py, cli = [sys.executable, "-c"], [sys.executable, "-m", "emmi_gym.cli"]
-    score, plot = [sys.executable, "scripts/score_checkpoints.py"], [sys.executable, "scripts/plot_learning_curves.py"]
+    score, plot = [*cli, "score-checkpoints"], [*cli, "learning-curves"]
     f = folder
     configs = {"corridor": CORRIDOR, "corridor24": dict(CORRIDOR, total_timesteps=24),
                "ppo": dict(CORRIDOR, algorithm="PPO"),
@@ -178,14 +178,14 @@ def training_probes(folder: Path) -> list[Probe]:
     probes.append(Probe("4. train plans.yaml --init-from the corridor agent",
                         [*cli, "train", cfg["plans"], "--init-from", str(model), "--out", str(f / "T4"), "--quiet"],
                         r"LoopCorridor|ExplorePlans|env"))
-    # 5. score_checkpoints --episodes 0 / -1
+    # 5. score-checkpoints --episodes 0 / -1
     for episodes in ("0", "-1"):
         r5 = run_copy(f"R5_{episodes}")
         (r5 / "checkpoint_scores.csv").write_text(CURVE)
-        probes.append(Probe(f"5. score_checkpoints.py R --episodes {episodes}",
+        probes.append(Probe(f"5. score-checkpoints R --episodes {episodes}",
                             [*score, str(r5), "--episodes", episodes],
                             r"--episodes: expected an integer in \[1, 100000\]", keep=[r5 / "checkpoint_scores.csv"]))
-    # 6 and 13. plot_learning_curves.py and score_checkpoints.py
+    # 6 and 13. learning-curves and score-checkpoints
     csvs = {"empty": "", "header_only": MEASURES, "all_nan": MEASURES + "8,nan,nan,nan,nan\n16,,,,\n",
             "no_ate_column": "timesteps,oracle_accuracy,sim_steps,coverage\n8,0.5,100,0.4\n",
             "text_in_a_number": MEASURES + "8,0.5,fast,100,0.4\n",
@@ -209,22 +209,22 @@ def training_probes(folder: Path) -> list[Probe]:
     for name, pattern in expected.items():
         out = f / f"plot_{name}.png"
         item = "13" if name in ("no_ate_column", "text_in_a_number", "131_KB_field", "latin1") else "6"
-        probes.append(Probe(f"{item}. plot_learning_curves.py: {name.replace('_', ' ')} CSV",
+        probes.append(Probe(f"{item}. learning-curves: {name.replace('_', ' ')} CSV",
                             [*plot, str(f / f"csv_{name}"), "--out", str(out)], f"eval_ground_truth.csv.*{pattern}"))
     probes += [
-        Probe("6. plot_learning_curves.py --baselines-csv garbage", [*plot, good, "--baselines-csv",
+        Probe("6. learning-curves --baselines-csv garbage", [*plot, good, "--baselines-csv",
                                                                      str(f / "garbage.csv"), "--out", str(f / "b.png")],
               r"garbage\.csv: expected"),
-        Probe("6. plot_learning_curves.py --out NAME (no suffix)", [*plot, good, "--out", str(f / "NAME")],
+        Probe("6. learning-curves --out NAME (no suffix)", [*plot, good, "--out", str(f / "NAME")],
               success=wrote(f / "NAME.png")),
-        Probe("13. plot_learning_curves.py: a run folder without the CSV", [*plot, str(f / "R"), "--out",
+        Probe("13. learning-curves: a run folder without the CSV", [*plot, str(f / "R"), "--out",
                                                                           str(f / "c.png")],
               r"eval_ground_truth\.csv does not exist"),
-        Probe("13. plot_learning_curves.py --out in an unwritable place", [*plot, good, "--out",
+        Probe("13. learning-curves --out in an unwritable place", [*plot, good, "--out",
                                                                           str(f / "a_file" / "c.png")],
               r"--out .*a_file: expected a folder that can be made and written to"),
-        Probe("13. score_checkpoints.py MISSING_FOLDER", [*score, str(f / "missing")],
-              r"^score_checkpoints\.py: error: run folder .*missing does not exist$"),
+        Probe("13. score-checkpoints MISSING_FOLDER", [*score, str(f / "missing")],
+              r"^emmi-gym score-checkpoints: error: run folder .*missing does not exist$"),
     ]
     # 7. non-finite demonstrations and models
     inf = _demonstrations(obs_pose=np.array([[np.inf, 0, 0]] + [[0, 0, 0]] * 2, np.float32))

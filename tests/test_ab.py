@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+from emmi_gym import cli
 from emmi_gym.cli import main
 from emmi_gym.experiments import ABSettings, run_episode
 from emmi_gym.experiments.intervals import mean_interval
@@ -95,7 +96,7 @@ def test_a_worker_run_is_the_run_of_this_process(experiment):
     run = run_episode(1, "B", ABSettings())
     assert len(run.rows) == len(logged)
     assert all(float(a["emmi"]) == b["emmi"] and float(a["joint_entropy"]) == b["joint_entropy"]
-               for a, b in zip(logged, run.rows))
+               for a, b in zip(logged, run.rows, strict=True))
 
 
 def test_demo_writes_the_figures_and_prints_the_summary(tmp_path, capsys):
@@ -118,13 +119,18 @@ def test_demo_writes_the_figures_and_prints_the_summary(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["ab", "--seeds", "1"], "--seeds must be at least 2"),
-    (["ab", "--particles", "0"], "--particles must be at least 1"),
+    (["ab", "--seeds", "1"], "argument --seeds: expected an integer in [2, 100000], got '1'"),
+    (["ab", "--particles", "0"], "argument --particles: expected an integer in [1, 1000], got '0'"),
+    (["ab", "--particles", "1001"], "argument --particles: expected an integer in [1, 1000], got '1001'"),
+    (["ab", "--max-decisions", "ten"], "argument --max-decisions: expected an integer in [1, 1000000], got 'ten'"),
     (["ab", "--world", "atlantis"], "atlantis"),
     (["ab", "--world", "office"], "cannot host the A/B experiment: it lacks place 'decision'"),
-    (["demo", "--workers", "0"], "--workers must be at least 1"),
+    (["demo", "--workers", "0"], "argument --workers: expected an integer >= 1, got '0'"),
 ])
 def test_bad_input_is_a_clear_error(argv, message, capsys):
+    from emmi_gym.slam.config import MAX_PARTICLES
+
+    assert cli.MAX_PARTICLES == MAX_PARTICLES  # the bound the filter's configuration keeps
     with pytest.raises(SystemExit) as exit_:
         main(argv + ["--out", "unused"])
     assert exit_.value.code == 2

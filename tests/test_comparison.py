@@ -1,6 +1,7 @@
-"""Scripted policies compared on worlds, paired by world and seed (scripts/compare_policies.py in small)."""
+"""Scripted policies compared on worlds, paired by world and seed (`emmi-gym compare-policies`)."""
 
 import numpy as np
+import pytest
 
 from emmi_gym.experiments.comparison import ComparisonSettings, compare, markdown_table, paired, plot_pair, run_episode
 from emmi_gym.experiments.report import read_csv, write_csv
@@ -37,3 +38,44 @@ def test_worlds_of_takes_a_sets_first_maps_and_a_world_as_it_is():
 
     plans = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
     assert worlds_of(["dungeon_maps/test", "loop_corridor"], 2) == [*plans, "loop_corridor"]
+
+
+def test_compare_policies_command_writes_the_paired_table_episodes_and_maps(tmp_path, capsys):
+    from emmi_gym.cli import main
+
+    worlds = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
+    out = tmp_path / "out"
+    assert main(["compare-policies", "--worlds", *worlds, "--seeds", "1", "--first-seed", "5", "--options",
+                 '{"max_decisions": 2}', "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    rows = read_csv(out / "episodes.csv")
+    assert [(r["world"], r["seed"], r["policy"]) for r in rows] == [(w, 5, p) for w in worlds for p in
+                                                                  ("frontier", "active_loop_closing")]
+    table = (out / "summary.md").read_text()
+    assert "2 pairs" in table and table.strip() in capsys.readouterr().out
+    assert (out / "maps.png").read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--options", "[1]"], "--options: expected a JSON object of options"),
+    (["--options", "{"], "--options"),
+    (["--options", '{"max_decisions": -1}'], "max_decisions"),
+    (["--env", "emmi_gym/Nope-v0"], "--env: no environment 'emmi_gym/Nope-v0' is registered"),
+    (["--policies", "frontier", "nope"], "--policies: unknown ['nope']"),
+])
+def test_compare_policies_command_refuses_bad_options_in_one_line(tmp_path, capsys, argv, message):
+    from emmi_gym.cli import main
+
+    with pytest.raises(SystemExit) as done:
+        main(["compare-policies", *argv, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert done.value.code == 2 and err.startswith("emmi-gym compare-policies: error: ") and message in err, err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "out").exists()
+
+
+def test_seeds_is_a_count_in_every_command():
+    from emmi_gym.cli import build_parser
+
+    parser = build_parser()
+    for command in (["ab"], ["demo"], ["benchmark"], ["compare-policies"]):
+        args = parser.parse_args([*command, "--seeds", "3", "--first-seed", "7"])
+        assert (args.seeds, args.first_seed) == (3, 7), command

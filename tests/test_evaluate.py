@@ -85,7 +85,8 @@ def test_the_package_ships_the_reference_agents():
     assert {"loop_corridor_emmi", "explore_plans_emmi"} <= set(pretrained.names())
 
 
-def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path):
+def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path, capsys):
+    from emmi_gym.experiments.report import read_csv
     from emmi_gym.training.checkpoint_scores import score_checkpoints
     from emmi_gym.training.evaluate import compare_model
 
@@ -98,7 +99,9 @@ def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path)
     train(parse_agent_config(data), run, progress=False)
     (run / "checkpoints" / "model_12_steps.zip").write_bytes(b"cut short")  # a save a kill cut short
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint .*model_12_steps.zip"):
-        curve, rows = score_checkpoints(run, episodes=2, seed=7, workers=1, progress=False)
+        assert main(["score-checkpoints", str(run), "--episodes", "2", "--seed", "7", "--workers", "1"]) == 0
+    assert f"{run}: 2 checkpoints x 2 episodes: wrote {run / 'checkpoint_scores.csv'}" in capsys.readouterr().out
+    curve, rows = read_csv(run / "checkpoint_scores.csv"), read_csv(run / "checkpoint_episodes.csv")
     assert [row["timesteps"] for row in curve] == [4, 8]
     assert sorted((r["policy"], r["seed"]) for r in rows) == [(p, s) for p in ("model_4", "model_8") for s in (7, 8)]
     last = [r for r in rows if r["policy"] == "model_8"]

@@ -24,6 +24,7 @@ ALLOWED = {
                     "policies"},
     "training": {"inputs", "concurrency", "env", "policies", "experiments"},
     "pretrained": {"training"},
+    "commands": {"inputs", "env", "policies", "experiments", "training"},
 }
 
 

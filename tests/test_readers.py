@@ -13,7 +13,7 @@ import yaml
 
 from emmi_gym.cli import main as emmi_gym
 from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
-from emmi_gym.training import checkpoint_scores, learning_curves
+from emmi_gym.training import checkpoint_scores
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.demonstrations import Demonstrations, DemonstrationsError
 from emmi_gym.training.model_files import ModelFileError, check_model_file
@@ -68,58 +68,59 @@ def test_the_csv_reader_reads_numbers_and_empty_cells(tmp_path):
     (MEASURES + "8,nan,nan,nan,nan\n16,,,,\n", "field 'oracle_accuracy': expected a finite value in at least one row"),
     ("timesteps,ate\n8,0.1\n", "with the columns ['oracle_accuracy', 'sim_steps', 'coverage']"),
 ])
-def test_plot_learning_curves_refuses_files_that_would_draw_blank_axes(tmp_path, capsys, content, expected):
+def test_learning_curves_refuses_files_that_would_draw_blank_axes(tmp_path, capsys, content, expected):
     (tmp_path / "eval_ground_truth.csv").write_text(content)
-    err = one_line_error(capsys, learning_curves.main, [str(tmp_path), "--out", str(tmp_path / "c.png")])
-    assert f"plot_learning_curves.py: error: {tmp_path / 'eval_ground_truth.csv'}: " in err and expected in err
+    err = one_line_error(capsys, emmi_gym, ["learning-curves", str(tmp_path), "--out", str(tmp_path / "c.png")])
+    assert f"emmi-gym learning-curves: error: {tmp_path / 'eval_ground_truth.csv'}: " in err and expected in err
     assert not (tmp_path / "c.png").exists()
 
 
-def test_plot_learning_curves_checks_baselines_and_names_the_file_it_wrote(tmp_path, capsys):
+def test_learning_curves_checks_baselines_and_names_the_file_it_wrote(tmp_path, capsys):
     (tmp_path / "eval_ground_truth.csv").write_text(CURVE)
     (tmp_path / "garbage.csv").write_bytes(b"\x00\x01garbage")
-    err = one_line_error(capsys, learning_curves.main, [str(tmp_path), "--out", str(tmp_path / "c"),
+    err = one_line_error(capsys, emmi_gym, ["learning-curves", str(tmp_path), "--out", str(tmp_path / "c"),
                                                          "--baselines-csv", str(tmp_path / "garbage.csv")])
     assert f"{tmp_path / 'garbage.csv'}: expected a text file" in err
     (tmp_path / "other.csv").write_text("policy," + MEASURES.split(",", 1)[1] + "agent,0.5,0.2,100,0.4\n")
-    err = one_line_error(capsys, learning_curves.main, [str(tmp_path), "--out", str(tmp_path / "c"),
+    err = one_line_error(capsys, emmi_gym, ["learning-curves", str(tmp_path), "--out", str(tmp_path / "c"),
                                                          "--baselines-csv", str(tmp_path / "other.csv")])
     assert "field 'policy': expected episodes of at least one of ['frontier', 'active_loop_closing', 'random'], " \
            "got ['agent']" in err
     (tmp_path / "episodes.csv").write_text("policy," + MEASURES.split(",", 1)[1] + "frontier,0.5,0.2,100,0.4\n")
-    assert learning_curves.main([f"{tmp_path}=run", "--out", str(tmp_path / "c"), "--baselines-csv",
+    assert emmi_gym(["learning-curves", f"{tmp_path}=run", "--out", str(tmp_path / "c"), "--baselines-csv",
                                  str(tmp_path / "episodes.csv")]) == 0
     assert capsys.readouterr().out.strip() == f"wrote {tmp_path / 'c.png'}"
     assert (tmp_path / "c.png").read_bytes().startswith(b"\x89PNG")
 
 
-def test_plot_learning_curves_checks_its_output_and_run_folders_first(tmp_path, capsys):
+def test_learning_curves_checks_its_output_and_run_folders_first(tmp_path, capsys):
     (tmp_path / "a_file").write_text("x")
-    err = one_line_error(capsys, learning_curves.main, [str(tmp_path / "missing"), "--out",
+    err = one_line_error(capsys, emmi_gym, ["learning-curves", str(tmp_path / "missing"), "--out",
                                                          str(tmp_path / "a_file" / "c.png")])
     assert err.endswith(f"--out {tmp_path / 'a_file'}: expected a folder that can be made and written to; "
                         f"{tmp_path / 'a_file'} is a regular file, not a folder")  # not the missing run folder
-    err = one_line_error(capsys, learning_curves.main, [str(tmp_path / "missing"), "--out", str(tmp_path / "c.png")])
+    err = one_line_error(capsys, emmi_gym, ["learning-curves", str(tmp_path / "missing"), "--out",
+                                            str(tmp_path / "c.png")])
     assert err.endswith(f"run folder {tmp_path / 'missing'} does not exist")
     (tmp_path / "eval_ground_truth.csv").write_text(CURVE)
-    err = one_line_error(capsys, learning_curves.main, [str(tmp_path), "--out", str(tmp_path / "c.xyz")])
+    err = one_line_error(capsys, emmi_gym, ["learning-curves", str(tmp_path), "--out", str(tmp_path / "c.xyz")])
     assert f"--out {tmp_path / 'c.xyz'}: expected a figure file named *." in err
 
 
 @pytest.mark.parametrize("episodes", ["0", "-1", "100001", "ten"])
 def test_score_checkpoints_refuses_episode_counts_at_parse_time_leaving_results(tmp_path, capsys, episodes):
     (tmp_path / "checkpoint_scores.csv").write_text(CURVE)
-    err = one_line_error(capsys, checkpoint_scores.main, [str(tmp_path), "--episodes", episodes])
+    err = one_line_error(capsys, emmi_gym, ["score-checkpoints", str(tmp_path), "--episodes", episodes])
     assert f"argument --episodes: expected an integer in [1, 100000], got '{episodes}'" in err
     assert (tmp_path / "checkpoint_scores.csv").read_text() == CURVE
 
 
 def test_score_checkpoints_says_which_is_missing_in_one_line(tmp_path, capsys):
-    err = one_line_error(capsys, checkpoint_scores.main, [str(tmp_path / "nowhere")])
-    assert err == f"score_checkpoints.py: error: run folder {tmp_path / 'nowhere'} does not exist"
+    err = one_line_error(capsys, emmi_gym, ["score-checkpoints", str(tmp_path / "nowhere")])
+    assert err == f"emmi-gym score-checkpoints: error: run folder {tmp_path / 'nowhere'} does not exist"
     (tmp_path / "run").mkdir()
-    err = one_line_error(capsys, checkpoint_scores.main, [str(tmp_path / "run")])
-    assert err == (f"score_checkpoints.py: error: no checkpoint in {tmp_path / 'run' / 'checkpoints'}: was "
+    err = one_line_error(capsys, emmi_gym, ["score-checkpoints", str(tmp_path / "run")])
+    assert err == (f"emmi-gym score-checkpoints: error: no checkpoint in {tmp_path / 'run' / 'checkpoints'}: was "
                    f"{tmp_path / 'run'} written by 'emmi-gym train'?")
     with pytest.raises(ValueError, match=r"episodes: expected an integer in \[1, 100000\], got 0"):
         checkpoint_scores.score_checkpoints(tmp_path / "run", episodes=0)

@@ -55,3 +55,41 @@ def run_command(parser: argparse.ArgumentParser, command, argv=None) -> int:
         return command(args)
     except (ValueError, OSError) as exc:
         parser.exit(2, f"{parser.prog}: error: {exc}\n")
+
+
+def add_workers(parser: argparse.ArgumentParser) -> None:
+    """``--workers N``, in every command the number of local worker processes (default one per core)."""
+    parser.add_argument("--workers", type=integer(1), default=None, metavar="N",
+                        help="worker processes (default one per core)")
+
+
+def add_seed_range(parser: argparse.ArgumentParser, seeds: int, first_seed: int = 0, least: int = 1) -> None:
+    """``--seeds N`` and ``--first-seed S``, in every command the seeds S, S + 1, ..., S + N - 1 (``--seeds``
+    is a count everywhere; ``least`` the fewest the command takes)."""
+    parser.add_argument("--seeds", type=integer(least, MAX_EPISODES), default=seeds, metavar="N",
+                        help=f"number of seeds (default {seeds})")
+    parser.add_argument("--first-seed", type=SEED, default=first_seed, metavar="S",
+                        help=f"the first seed (default {first_seed})")
+
+
+def seed_range(args: argparse.Namespace) -> range:
+    """The seeds of :func:`add_seed_range`'s options."""
+    return range(args.first_seed, args.first_seed + args.seeds)
+
+
+#: What ``--ray`` given without an address means: Ray's own choice, the cluster named by the
+#: ``RAY_ADDRESS`` environment variable, else a Ray instance started on this machine.
+RAY_DEFAULT_ADDRESS = "env"
+
+
+def add_ray(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--ray [ADDRESS]``, in every command: run on Ray, at ADDRESS (see :func:`ray_address`)."""
+    parser.add_argument("--ray", nargs="?", const=RAY_DEFAULT_ADDRESS, default=None, metavar="ADDRESS",
+                        help=f"{what}, on the cluster at ADDRESS ('local': a Ray instance on this machine; no "
+                             "ADDRESS: the cluster of RAY_ADDRESS, else a local instance)")
+
+
+def ray_address(args: argparse.Namespace) -> str | None:
+    """The cluster address :func:`add_ray`'s option asks for (``emmi_gym.concurrency.connect_ray``'s argument):
+    ``None`` without ``--ray`` or without an address, which ``connect_ray`` reads as Ray's default."""
+    return None if args.ray in (None, RAY_DEFAULT_ADDRESS) else args.ray

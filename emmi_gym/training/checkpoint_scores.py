@@ -4,7 +4,7 @@ checkpoint's row is the mean of the episodes' ground-truth measures.
 
 ``emmi-gym train``'s periodic evaluation plays one episode at a time in the learner's process, while
 the env workers wait; a run trained with ``eval.freq: 0`` gets its curve afterwards, on every core and
-on as many episodes as wanted (``scripts/score_checkpoints.py``, :func:`main`)."""
+on as many episodes as wanted (``emmi-gym score-checkpoints``, :func:`score_runs`)."""
 
 from __future__ import annotations
 
@@ -62,25 +62,13 @@ def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
     return found
 
 
-#: The files :func:`main` writes into each run folder.
+#: The files :func:`score_runs` writes into each run folder.
 CURVE_FILE, EPISODES_FILE = "checkpoint_scores.csv", "checkpoint_episodes.csv"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="score_checkpoints.py", description="Score every checkpoint of training "
-                                     "runs on the same held-out episodes, in parallel.")
-    parser.add_argument("runs", nargs="+", type=Path, help="run folders of 'emmi-gym train'")
-    parser.add_argument("--world", default=None, help="world, map set, folder or glob (default: the run's own)")
-    parser.add_argument("--episodes", type=arguments.EPISODES, default=16, help="episodes per checkpoint")
-    parser.add_argument("--seed", type=arguments.SEED, default=EVALUATION_SEED, help="first episode seed")
-    parser.add_argument("--workers", type=arguments.integer(1), default=None,
-                        help="worker processes (default one per core)")
-    return parser
-
-
 def score_runs(args: argparse.Namespace) -> int:
-    """Score every run of ``args`` (see :func:`build_parser`) and write, in each run folder, :data:`CURVE_FILE`
-    (a row per checkpoint) and :data:`EPISODES_FILE` (every episode), each renamed into place once whole.
+    """Score every run of ``args`` (the options of ``emmi-gym score-checkpoints``) and write, in each run
+    folder, :data:`CURVE_FILE` (a row per checkpoint) and :data:`EPISODES_FILE` (every episode), each renamed into place once whole.
     Every folder is checked first (there, with checkpoints, writable), before any episode is played."""
     for run in args.runs:
         whole_checkpoints(run)
@@ -94,7 +82,3 @@ def score_runs(args: argparse.Namespace) -> int:
               f"{run / EPISODES_FILE}\n{format_table(curve)}\n", flush=True)
     return 0
 
-
-def main(argv: list[str] | None = None) -> int:
-    """``scripts/score_checkpoints.py``: bad input is a one-line error, not a traceback."""
-    return arguments.run_command(build_parser(), score_runs, argv)

@@ -1,13 +1,13 @@
 """Learning curves of training runs: the held-out evaluations' ground truth against decisions trained
-(``scripts/plot_learning_curves.py``, :func:`main`).
+(``emmi-gym learning-curves``, :func:`plot`).
 
-    python scripts/plot_learning_curves.py runs/plans_emmi_seed0=scratch runs/plans_emmi_bc_seed0=clone+RL \\
+    emmi-gym learning-curves runs/plans_emmi_seed0=scratch runs/plans_emmi_bc_seed0=clone+RL \\
         --baselines-csv results/test50.csv --out docs/plans_learning_curves.png
-    python scripts/plot_learning_curves.py runs/bench/runs/emmi_seed0=emmi runs/bench/runs/emmi_seed1=emmi \\
+    emmi-gym learning-curves runs/bench/runs/emmi_seed0=emmi runs/bench/runs/emmi_seed1=emmi \\
         runs/bench/runs/pose_entropy_seed0=pose_entropy runs/bench/runs/pose_entropy_seed1=pose_entropy --out c.png
 
 Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``; ``--scores
-checkpoint_scores.csv``: the file of ``scripts/score_checkpoints.py``) gives one line per measure;
+checkpoint_scores.csv``: the file of ``emmi-gym score-checkpoints``) gives one line per measure;
 runs given the same LABEL (the seeds of one configuration) are drawn as their mean over the
 evaluations they all reached, the band spanning them; ``--baselines-csv`` (``episodes.csv`` of
 ``emmi-gym evaluate --out``, or ``benchmark_episodes.csv`` of ``emmi-gym benchmark``) draws each
@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..inputs import arguments
 from ..inputs.csv_files import CsvFileError, read_csv_file
 from ..inputs.paths import output_file, write_atomically
 
@@ -122,19 +121,9 @@ def draw(groups: dict[str, list[dict]], baselines: dict[str, dict[str, float]], 
     plt.close(fig)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="plot_learning_curves.py", description="Learning curves of training runs: "
-                                     "the held-out evaluations' ground truth against decisions trained.")
-    parser.add_argument("runs", nargs="+", help="RUN_DIR or RUN_DIR=LABEL")
-    parser.add_argument("--scores", default="eval_ground_truth.csv",
-                        help="the file of each run folder to draw (checkpoint_scores.csv: score_checkpoints.py's)")
-    parser.add_argument("--baselines-csv", type=Path, default=None)
-    parser.add_argument("--out", type=Path, required=True, help="the figure's file (no suffix: .png)")
-    return parser
-
-
 def plot(args: argparse.Namespace) -> int:
-    """Check the figure's file and read every file of ``args`` (see :func:`build_parser`), then draw."""
+    """Check the figure's file and read every file of ``args`` (the options of ``emmi-gym learning-curves``),
+    then draw."""
     out = figure_path(args.out)
     groups: dict[str, list[dict]] = {}
     for run in args.runs:
@@ -148,7 +137,3 @@ def plot(args: argparse.Namespace) -> int:
     print(f"wrote {out}")
     return 0
 
-
-def main(argv: list[str] | None = None) -> int:
-    """``scripts/plot_learning_curves.py``: bad input is a one-line error, not a traceback."""
-    return arguments.run_command(build_parser(), plot, argv)

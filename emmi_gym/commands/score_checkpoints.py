@@ -1,0 +1,31 @@
+"""``emmi-gym score-checkpoints``: every checkpoint of training runs on the same held-out episodes, in
+parallel (:mod:`emmi_gym.training.checkpoint_scores`)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..inputs import arguments
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "score-checkpoints", help="score every checkpoint of training runs on the same held-out episodes, in "
+                                  "parallel: the learning curve of a run trained with eval.freq: 0",
+        description="Writes checkpoint_scores.csv (a row per checkpoint: the mean of each ground-truth measure) "
+                    "and checkpoint_episodes.csv (every episode) into each run folder.")
+    parser.add_argument("runs", nargs="+", type=Path, help="run folders of 'emmi-gym train'")
+    parser.add_argument("--world", default=None, help="world, map set, folder or glob (default: the run's own)")
+    parser.add_argument("--episodes", type=arguments.EPISODES, default=16, help="episodes per checkpoint")
+    parser.add_argument("--seed", type=arguments.SEED, default=200_000, help="first episode seed (default 200000: "
+                        "held out, as 'emmi-gym evaluate')")
+    arguments.add_workers(parser)
+    parser.set_defaults(func=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..training.checkpoint_scores import score_runs
+
+    return score_runs(args)
