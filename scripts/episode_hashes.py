@@ -28,14 +28,16 @@ ROOT = Path(__file__).resolve().parent.parent
 LOG = ROOT / "tests" / "data" / "intel-first-loop.log.gz"
 
 
-def _feed(digest, value) -> None:
+def _hash_into(digest, value) -> None:
+    """Update ``digest`` with ``value``: dicts by sorted key, sequences item by item, numbers and arrays by
+    their bytes, text by its UTF-8."""
     if isinstance(value, dict):
         for key in sorted(value):
             digest.update(str(key).encode())
-            _feed(digest, value[key])
+            _hash_into(digest, value[key])
     elif isinstance(value, (list, tuple)):
         for item in value:
-            _feed(digest, item)
+            _hash_into(digest, item)
     elif isinstance(value, (bool, int, float, np.number, np.bool_, np.ndarray)):
         digest.update(np.ascontiguousarray(np.asarray(value)).tobytes())
     elif isinstance(value, str):
@@ -47,8 +49,8 @@ def episode_hash(env_id: str, seed: int, steps: int) -> str:
     env = gym.make(env_id)
     digest = hashlib.sha256()
     obs, info = env.reset(seed=seed)
-    _feed(digest, obs)
-    _feed(digest, info)
+    _hash_into(digest, obs)
+    _hash_into(digest, info)
     rng = np.random.default_rng(seed)
     for _ in range(steps):
         masks = getattr(env.unwrapped, "action_masks", None)
@@ -60,7 +62,7 @@ def episode_hash(env_id: str, seed: int, steps: int) -> str:
             action = rng.uniform(low, high).astype(env.action_space.dtype)
         obs, reward, terminated, truncated, info = env.step(action)
         for value in (obs, reward, terminated, truncated, info):
-            _feed(digest, value)
+            _hash_into(digest, value)
         if terminated or truncated:
             break
     env.close()
@@ -75,7 +77,7 @@ def replay_hash() -> str:
         digest = hashlib.sha256()
         with open(Path(out) / "metrics.csv", newline="") as f:
             for row in csv.DictReader(f):  # the measures, not the timings (``*_ms``), which vary run to run
-                _feed(digest, {k: v for k, v in row.items() if not k.endswith("_ms")})
+                _hash_into(digest, {k: v for k, v in row.items() if not k.endswith("_ms")})
         digest.update((Path(out) / "best_trajectory.tum").read_bytes())
         return digest.hexdigest()
 

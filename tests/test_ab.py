@@ -20,7 +20,7 @@ from matplotlib.image import imread
 
 from emmi_gym import cli
 from emmi_gym.cli import main
-from emmi_gym.experiments import ABSettings, run_episode
+from emmi_gym.experiments import ABSettings, run_arm
 from emmi_gym.experiments.intervals import mean_interval
 from emmi_gym.experiments.report import SUMMARY_COLUMNS
 
@@ -93,7 +93,7 @@ def test_a_worker_run_is_the_run_of_this_process(experiment):
     out, _ = experiment
     with open(out / "ab_updates.csv") as f:
         logged = [r for r in csv.DictReader(f) if r["seed"] == "1" and r["arm"] == "B"]
-    run = run_episode(1, "B", ABSettings())
+    run = run_arm(1, "B", ABSettings())
     assert len(run.rows) == len(logged)
     assert all(float(a["emmi"]) == b["emmi"] and float(a["joint_entropy"]) == b["joint_entropy"]
                for a, b in zip(logged, run.rows, strict=True))

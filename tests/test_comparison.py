@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from emmi_gym.experiments.comparison import ComparisonSettings, compare, markdown_table, paired, plot_pair, run_episode
+from emmi_gym.experiments.comparison import (
+    ComparisonSettings,
+    compare,
+    markdown_table,
+    paired,
+    play_on_world,
+    plot_pair,
+)
 from emmi_gym.experiments.report import read_csv, write_csv
 from emmi_gym.world.map_sets import map_set_files
 
@@ -21,9 +28,9 @@ def test_policies_are_paired_by_world_and_seed(tmp_path):
     table = markdown_table(rows, "active_loop_closing", "frontier", "test")
     assert "2 pairs" in table and "| ATE (m) |" in table
     # the same world and seed give the same episode
-    again = run_episode(worlds[0], 0, "frontier", settings, keep_maps=True)
+    again = play_on_world(worlds[0], 0, "frontier", settings, keep_maps=True)
     assert again["ate"] == rows[0]["ate"] and again["oracle_accuracy"] == rows[0]["oracle_accuracy"]
-    plot_pair([again, run_episode(worlds[0], 0, "active_loop_closing", settings, keep_maps=True)],
+    plot_pair([again, play_on_world(worlds[0], 0, "active_loop_closing", settings, keep_maps=True)],
               tmp_path / "maps.png")
     write_csv(tmp_path / "episodes.csv", rows)  # what 'emmi-gym evaluate --out' writes reads back the same
     def nan_as_text(rows):

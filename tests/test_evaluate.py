@@ -7,7 +7,7 @@ import pytest
 
 from emmi_gym import pretrained
 from emmi_gym.cli import main
-from emmi_gym.experiments.comparison import ComparisonSettings, run_episode
+from emmi_gym.experiments.comparison import ComparisonSettings, play_on_world
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.train import load_run_config, train
 from emmi_gym.world.map_sets import map_set_files
@@ -44,7 +44,7 @@ def test_evaluate_plays_the_model_and_the_baselines_on_the_same_episodes(tiny_ag
         (p, s) for p in ("agent", "frontier", "random") for s in ("7", "8"))
     # the baseline's episodes are those the comparison plays on its own for the same world and seed
     config = load_run_config(tiny_agent)
-    alone = run_episode(None, 8, "frontier", ComparisonSettings(config.env_id, config.eval_env_kwargs))
+    alone = play_on_world(None, 8, "frontier", ComparisonSettings(config.env_id, config.eval_env_kwargs))
     played = next(r for r in rows if r["policy"] == "frontier" and r["seed"] == "8")
     assert float(played["ate"]) == alone["ate"] and float(played["coverage"]) == alone["coverage"]
 

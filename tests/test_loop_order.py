@@ -107,7 +107,7 @@ def test_loop_order_passes_the_checker_and_replays_bit_for_bit():
 def test_the_ab_options_reach_the_env():
     settings = ab_settings("emmi_gym/LoopCorridor-v0", {"laser.max_range": 4.0, "odometry_scale": 2.0,
                                                         "slam.resample_threshold": 1.0, "particles": 5})
-    env = settings.make_env().unwrapped
+    env = settings.experiment_env().unwrapped
     poor = odometry_config("poor")
     assert env.laser_config.max_range == 4.0 and env.laser_config.n_beams == 181  # the env's preset, changed
     assert env.odometry_config.trans_from_trans == pytest.approx(2 * poor.trans_from_trans)

@@ -54,7 +54,7 @@ def test_kept_steps_add_up_to_the_return_the_env_paid():
     settings = ComparisonSettings("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 3,
                                                           "generator": {"nx": 2, "ny": 2, "n_loops": 1}})
     rows = compare_on([(None, 4)], ["frontier", "random"], settings, workers=1, progress=False, keep_steps=True)
-    time_cost = settings.make_env(None).unwrapped.config.time_cost
+    time_cost = settings.env_on(None).unwrapped.config.time_cost
     for row in rows:
         assert len(row["steps"]) == row["decisions"] >= 1
         assert math.isclose(discounted_return(row["steps"], "emmi", time_cost, Discount()), row["return"],

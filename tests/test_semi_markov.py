@@ -94,7 +94,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
     from sb3_contrib import MaskablePPO
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from emmi_gym.training.train import make_env
+    from emmi_gym.training.train import make_agent_env
 
     durations = []
 
@@ -103,7 +103,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
             durations.append(self.locals["infos"][0]["sim_steps_this_step"])
             return True
 
-    env = make_env("emmi_gym/LoopCorridor-v0", {"particles": 3, "max_decisions": 4})
+    env = make_agent_env("emmi_gym/LoopCorridor-v0", {"particles": 3, "max_decisions": 4})
     model = MaskablePPO("MultiInputPolicy", env, n_steps=8, batch_size=8, n_epochs=1, gamma=GAMMA, seed=1,
                         policy_kwargs={"net_arch": [16]}, rollout_buffer_class=SemiMarkovMaskableDictRolloutBuffer)
     model.learn(8, callback=[Durations(), SemiMarkovDiscounts(UNIT)])

@@ -14,7 +14,7 @@ from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
 from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
 from emmi_gym.training.evaluate import evaluate_model
-from emmi_gym.training.train import latest_checkpoint, make_env, train, training_torch_threads
+from emmi_gym.training.train import latest_checkpoint, make_agent_env, train, training_torch_threads
 
 #: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.
 FAST_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 150}
@@ -478,7 +478,7 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
 def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(policy, expected):
     from emmi_gym.policies import make_policy
 
-    env = make_env("emmi_gym/LoopCorridor-v0", {"particles": 3, "max_decisions": 2})
+    env = make_agent_env("emmi_gym/LoopCorridor-v0", {"particles": 3, "max_decisions": 2})
     scripted = make_policy(policy)
     scripted.reset(7)
     env.reset(seed=7)
@@ -489,7 +489,7 @@ def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(poli
         done = terminated or truncated
     assert all("closed_loop_first" not in i for i in infos[:-1])
     assert infos[-1]["closed_loop_first"] == expected
-    explore = make_env("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 1})
+    explore = make_agent_env("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 1})
     explore.reset(seed=0)
     assert "closed_loop_first" not in explore.step(0)[4]   # no decision point: nothing to report
 

@@ -35,7 +35,14 @@ def run(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from ..env import ENV_IDS, EnvConfig
-    from ..experiments.comparison import ComparisonSettings, compare, markdown_table, plot_pair, run_episode, worlds_of
+    from ..experiments.comparison import (
+        ComparisonSettings,
+        compare,
+        markdown_table,
+        play_on_world,
+        plot_pair,
+        worlds_of,
+    )
     from ..experiments.report import write_csv
     from ..inputs.json_files import parse_json
     from ..inputs.paths import output_folder
@@ -68,6 +75,6 @@ def run(args: argparse.Namespace) -> int:
     for row in rows:
         accuracies.setdefault((row["world"], row["seed"]), {})[row["policy"]] = row["oracle_accuracy"]
     world, seed = max(accuracies, key=lambda k: abs(accuracies[k].get(policy, 0) - accuracies[k].get(baseline, 0)))
-    plot_pair([run_episode(world, seed, p, settings, keep_maps=True) for p in (baseline, policy)], out / "maps.png")
+    plot_pair([play_on_world(world, seed, p, settings, keep_maps=True) for p in (baseline, policy)], out / "maps.png")
     print(f"\nwrote {out / 'summary.md'}, {out / 'episodes.csv'}, {out / 'maps.png'} ({world}, seed {seed})")
     return 0

@@ -40,7 +40,9 @@ class ABSettings:
     max_decisions: int = 40
     env_options: dict = field(default_factory=dict)
 
-    def make_env(self) -> gym.Env:
+    def experiment_env(self) -> gym.Env:
+        """The env each arm is played in: these settings' env, particles and decisions, every RBPF update
+        recorded."""
         return gym.make(self.env_id, particles=self.particles, max_decisions=self.max_decisions, coverage_target=1.0,
                         update_records=True, **self.env_options)
 
@@ -147,11 +149,11 @@ def check_world(world) -> None:
                          f"{', '.join(missing)}")
 
 
-def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABRun:
+def run_arm(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABRun:
     """Run arm ``"A"`` or ``"B"`` from the decision point of ``settings.world`` with ``seed``."""
     if arm not in POLICIES:
         raise ValueError(f"arm must be one of {sorted(POLICIES)}, got {arm!r}")
-    env = settings.make_env()
+    env = settings.experiment_env()
     core = env.unwrapped
     policy = make_policy(POLICIES[arm])
     _, info = env.reset(seed=seed)
@@ -204,7 +206,7 @@ def run_episode(seed: int, arm: str, settings: ABSettings = ABSettings()) -> ABR
 
 
 def _run(job: tuple[int, str, ABSettings]) -> ABRun:
-    return run_episode(*job)
+    return run_arm(*job)
 
 
 def run_ab(seeds, settings: ABSettings = ABSettings(), *, workers: int | None = None,

@@ -2,7 +2,7 @@
 
 A policy is a scripted one, by name (:func:`emmi_gym.policies.make_policy`), or any object with a
 ``name`` and a ``make_actor()`` that returns what acts in
-:func:`~emmi_gym.experiments.episodes.run_episode` (a trained agent:
+:func:`~emmi_gym.experiments.episodes.play_episode` (a trained agent:
 :class:`emmi_gym.training.evaluate.TrainedAgent`). Each (world, seed) gives one
 episode per policy from the same start and the same random draws up to the first decision; the
 table reports each policy's mean and the paired difference with its 95% interval (Student's t,
@@ -25,8 +25,7 @@ from ..concurrency.parallel import run_in_processes
 from ..inputs.paths import write_atomically
 from ..policies import make_policy
 from ..world.map_sets import map_set_files
-from .episodes import PolicyActor, summarise
-from .episodes import run_episode as run_actor_episode
+from .episodes import PolicyActor, play_episode, summarise
 from .intervals import difference_interval, measure_interval
 from .loop_order import LOOP_ORDER_KEY, LoopOrderInfo
 
@@ -48,7 +47,8 @@ class ComparisonSettings:
     env_id: str = "emmi_gym/ExplorePlans-v0"
     env_options: dict = field(default_factory=dict)
 
-    def make_env(self, world) -> gym.Env:
+    def env_on(self, world) -> gym.Env:
+        """The comparison's env with ``world``, reporting each episode's loop order."""
         return LoopOrderInfo(gym.make(self.env_id, **dict(self.env_options, world=world)))
 
 
@@ -58,20 +58,20 @@ def policy_name(policy) -> str:
 
 
 def make_actor(policy):
-    """What acts in :func:`~emmi_gym.experiments.episodes.run_episode`: a fresh scripted policy, or what
+    """What acts in :func:`~emmi_gym.experiments.episodes.play_episode`: a fresh scripted policy, or what
     ``policy.make_actor()`` gives."""
     return PolicyActor(make_policy(policy)) if isinstance(policy, str) else policy.make_actor()
 
 
-def run_episode(world, seed: int, policy, settings: ComparisonSettings = ComparisonSettings(),
-                keep_maps: bool = False, keep_steps: bool = False) -> dict:
+def play_on_world(world, seed: int, policy, settings: ComparisonSettings = ComparisonSettings(),
+                  keep_maps: bool = False, keep_steps: bool = False) -> dict:
     """One episode of ``policy`` (a scripted policy's name or an object with ``make_actor()``) on ``world`` with
     ``seed``: its final scores (with ``keep_maps``, the expected map, the oracle map and the grid's
     extent; with ``keep_steps``, every step's reward components, see
-    :func:`emmi_gym.experiments.episodes.run_episode`)."""
-    env = settings.make_env(world)
+    :func:`emmi_gym.experiments.episodes.play_episode`)."""
+    env = settings.env_on(world)
     core = env.unwrapped
-    scores = run_actor_episode(env, make_actor(policy), seed, keep_steps=keep_steps)
+    scores = play_episode(env, make_actor(policy), seed, keep_steps=keep_steps)
     row = {"world": str(world), "plan": core.world.name, "seed": seed, "policy": policy_name(policy),
            "decisions": core.decisions, "return": scores["return"], **{k: scores[k] for k in SCORES if k in scores}}
     if keep_steps:
@@ -85,7 +85,7 @@ def run_episode(world, seed: int, policy, settings: ComparisonSettings = Compari
 
 def _run(job) -> dict:
     world, seed, policy, settings, keep_steps = job
-    return run_episode(world, seed, policy, settings, keep_steps=keep_steps)
+    return play_on_world(world, seed, policy, settings, keep_steps=keep_steps)
 
 
 def compare(worlds, seeds, policies, settings: ComparisonSettings = ComparisonSettings(), *,
@@ -100,7 +100,7 @@ def compare_on(episodes, policies, settings: ComparisonSettings = ComparisonSett
                start_method: str | None = None) -> list[dict]:
     """Every policy on each ``(world, seed)`` of ``episodes``, in ``workers`` processes (started by
     ``start_method``: "spawn" where a policy uses torch); rows sorted by world, seed, policy (with
-    ``keep_steps``, each row's ``steps``: see :func:`run_episode`)."""
+    ``keep_steps``, each row's ``steps``: see :func:`play_on_world`)."""
     jobs = ((w if w is None else str(w), int(s), p, settings, keep_steps) for w, s in episodes for p in policies)
     rows = run_in_processes(_run, jobs, total=len(episodes) * len(policies), workers=workers, desc="episodes",
                             progress=progress, start_method=start_method)

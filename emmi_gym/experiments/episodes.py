@@ -42,12 +42,12 @@ class PolicyActor:
         return self.policy(env)
 
 
-def run_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
+def play_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
     """One episode with ``actor``; its return, steps and ground-truth measures (see :data:`GROUND_TRUTH`).
 
     ``sim_steps_to_target`` is the simulator steps until the coverage target (NaN if it was
     not reached); where the episode starts at a loop's decision point and ``env`` is wrapped in
-    :class:`~emmi_gym.experiments.loop_order.LoopOrderInfo` (as ``make_env`` does),
+    :class:`~emmi_gym.experiments.loop_order.LoopOrderInfo` (as ``emmi_gym.training.train.make_agent_env`` does),
     ``closed_loop_first`` is 1.0 if the robot went back to the loop's start before entering the
     new area, 0.0 if it entered the new area first, NaN if neither. ``revisit_share`` is the
     fraction of waypoint decisions that chose a revisit target (``info["target_kind"]``; NaN
@@ -91,8 +91,8 @@ def _target_of(env, action) -> tuple[float, float] | None:
     return float(target.x), float(target.y)
 
 
-def run_episodes(env, actor, seeds) -> list[dict]:
-    return [run_episode(env, actor, int(seed)) for seed in seeds]
+def play_episodes(env, actor, seeds) -> list[dict]:
+    return [play_episode(env, actor, int(seed)) for seed in seeds]
 
 
 def nanmean(values) -> float:

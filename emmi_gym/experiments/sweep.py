@@ -145,7 +145,7 @@ def ab_settings(env_id: str, setting: dict, particles: int = 15, max_decisions: 
     options, run = env_options(env_id, setting)
     settings = ABSettings(env_id=env_id, particles=int(run.get("particles", particles)),
                           max_decisions=int(run.get("max_decisions", max_decisions)), env_options=options)
-    settings.make_env().close()
+    settings.experiment_env().close()
     return settings
 
 

@@ -139,7 +139,7 @@ class _Fields:
     def __init__(self, tokens: list[str]):
         self.tokens, self.pos = tokens, 1
 
-    def take(self, what: str, minimum: float = -math.inf, above: bool = False) -> float:
+    def number(self, what: str, minimum: float = -math.inf, above: bool = False) -> float:
         """The next field as a finite number >= ``minimum`` (> with ``above``)."""
         if self.pos >= len(self.tokens):
             raise ValueError(f"line ends before {what}")
@@ -159,7 +159,7 @@ class _Fields:
 
     def count(self, what: str, maximum: int = MAX_READINGS) -> int:
         """A count of the fields that follow: a whole number the rest of the line can hold."""
-        value = self.take(what, 0.0)
+        value = self.number(what, 0.0)
         if value != int(value) or value > maximum:
             raise ValueError(f"{what}: expected a count (an integer in [0, {maximum}]), got {value!r}")
         if value > len(self.tokens) - self.pos:
@@ -176,15 +176,16 @@ class _Fields:
                 return i - self.pos
         return None
 
-    def many(self, n: int, what: str, minimum: float = -math.inf) -> np.ndarray:
-        return np.array([self.take(f"{what}[{i}]", minimum) for i in range(n)], dtype=np.float64)
+    def numbers(self, n: int, what: str, minimum: float = -math.inf) -> np.ndarray:
+        """The next ``n`` fields as finite numbers >= ``minimum`` (``what[i]`` names each in an error)."""
+        return np.array([self.number(f"{what}[{i}]", minimum) for i in range(n)], dtype=np.float64)
 
     def pose(self, what: str) -> np.ndarray:
-        return self.many(3, what)
+        return self.numbers(3, what)
 
     def timestamp(self) -> float:
         """The record's timestamp, which must be followed by the hostname and the logger timestamp only."""
-        value = self.take("timestamp")
+        value = self.number("timestamp")
         rest = self.tokens[self.pos:]
         if len(rest) > 2:
             raise ValueError(f"{len(rest) - 2} tokens after the logger timestamp (expected: timestamp hostname "
@@ -204,8 +205,8 @@ def _excerpt(tokens: list[str], n: int = 3) -> str:
 
 def _parse_odom(f: _Fields) -> OdometryRecord:
     pose = f.pose("odometry pose")
-    tv, rv = f.take("tv"), f.take("rv")
-    f.take("accel")
+    tv, rv = f.number("tv"), f.number("rv")
+    f.number("accel")
     return OdometryRecord(pose, tv, rv, f.timestamp())
 
 
@@ -215,7 +216,7 @@ def _parse_flaser(f: _Fields, fov: float) -> LaserRecord:
     if numbers is not None and numbers != n + 7:  # the ranges, two poses, the timestamp, then the hostname
         raise ValueError(f"num_readings is {n}, but the line has {numbers - 7} ranges before its two poses, "
                          "timestamp and hostname")
-    ranges = f.many(n, "range", 0.0)
+    ranges = f.numbers(n, "range", 0.0)
     f.pose("laser pose")
     odom = f.pose("odometry pose")
     # FLASER lines do not say their field of view: ``fov``, centred, beams evenly spaced
@@ -224,14 +225,14 @@ def _parse_flaser(f: _Fields, fov: float) -> LaserRecord:
 
 
 def _parse_laser_header(f: _Fields):
-    f.take("laser_type")
-    start, _fov = f.take("start_angle"), f.take("field_of_view")
+    f.number("laser_type")
+    start, _fov = f.number("start_angle"), f.number("field_of_view")
     # beams must sweep counter-clockwise, and a maximum range must be one
-    resolution, max_range = f.take("angular_resolution", 0.0, above=True), f.take("maximum_range", 0.0, above=True)
-    f.take("accuracy")
-    f.take("remission_mode")
-    ranges = f.many(f.count("num_readings"), "range", 0.0)
-    f.many(f.count("num_remissions"), "remission")
+    resolution, max_range = f.number("angular_resolution", 0.0, above=True), f.number("maximum_range", 0.0, above=True)
+    f.number("accuracy")
+    f.number("remission_mode")
+    ranges = f.numbers(f.count("num_readings"), "range", 0.0)
+    f.numbers(f.count("num_remissions"), "remission")
     return ranges, start, resolution, max_range
 
 
@@ -244,7 +245,7 @@ def _parse_robotlaser(f: _Fields) -> LaserRecord:
     ranges, start, resolution, max_range = _parse_laser_header(f)
     laser_pose, robot_pose = f.pose("laser pose"), f.pose("robot pose")
     for what in ("laser_tv", "laser_rv", "forward_safety_dist", "side_safety_dist", "turn_axis"):
-        f.take(what)
+        f.number(what)
     dx, dy = laser_pose[0] - robot_pose[0], laser_pose[1] - robot_pose[1]
     c, s = math.cos(robot_pose[2]), math.sin(robot_pose[2])
     offset = np.array([c * dx + s * dy, -s * dx + c * dy,
@@ -285,7 +286,7 @@ def _check_ascii(line: str) -> None:
 def _parse_param(f: _Fields, offset: np.ndarray) -> None:
     """Fold a PARAM line of :data:`LASER_OFFSET_PARAMS` into the front laser's ``offset`` (x, y, theta)."""
     f.pos = 2
-    offset[LASER_OFFSET_PARAMS[f.tokens[1]]] = f.take(f.tokens[1])
+    offset[LASER_OFFSET_PARAMS[f.tokens[1]]] = f.number(f.tokens[1])
 
 
 def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: bool = False,

@@ -24,7 +24,8 @@ GOAL_RADIUS = 2.0
 TARGET_SNAP = 0.5
 
 
-def _core(env):
+def _unwrapped(env):
+    """The emmi_gym env under ``env``'s wrappers (``env`` itself when it has none)."""
     return getattr(env, "unwrapped", env)
 
 
@@ -37,7 +38,7 @@ class FrontierPolicy:
         pass
 
     def __call__(self, env) -> int:
-        return int(np.flatnonzero(_core(env).action_masks())[0])
+        return int(np.flatnonzero(_unwrapped(env).action_masks())[0])
 
 
 class RandomPolicy:
@@ -52,7 +53,7 @@ class RandomPolicy:
         self.rng = np.random.default_rng(seed)
 
     def __call__(self, env) -> int:
-        return int(self.rng.choice(np.flatnonzero(_core(env).action_masks())))
+        return int(self.rng.choice(np.flatnonzero(_unwrapped(env).action_masks())))
 
 
 class ActiveLoopClosingPolicy:
@@ -88,7 +89,7 @@ class ActiveLoopClosingPolicy:
         self.went_back = False
 
     def __call__(self, env) -> int:
-        core = _core(env)
+        core = _unwrapped(env)
         mask, targets, spreads = core.action_masks(), core.targets, core.loop_spreads
         threshold = self.threshold_cells * core.geometry.resolution
         loops = [k for k in np.flatnonzero(mask) if targets[k] is not None and targets[k].kind == "revisit"
@@ -171,7 +172,7 @@ class GoalSequencePolicy:
         4.6 m from a dead end it had seen, its estimate 0.8 m behind the truth, and wander
         off for good: the 10-particle demo's seed 0 under A.)
         """
-        core = _core(env)
+        core = _unwrapped(env)
         pose = core.estimated_pose
         while not self.done:
             field = self._distance_field(core, self.goals[self.phase])
@@ -184,7 +185,7 @@ class GoalSequencePolicy:
         return self.phase
 
     def __call__(self, env) -> int:
-        core = _core(env)
+        core = _unwrapped(env)
         self.advance(core)
         mask = core.action_masks()
         if self.done:

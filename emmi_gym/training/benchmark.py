@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 
 from ..concurrency.parallel import run_in_processes
 from ..concurrency.ray_cluster import connect_ray
-from ..experiments.episodes import PolicyActor, nanmean, run_episodes
+from ..experiments.episodes import PolicyActor, nanmean, play_episodes
 from ..experiments.intervals import measure_interval
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
@@ -31,7 +31,7 @@ from ..inputs.paths import write_atomically, write_text_atomically
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
 from .run_folder import RunError, RunStart, differing_fields, folder_entries
-from .train import make_env, set_torch_threads, train
+from .train import make_agent_env, set_torch_threads, train
 from .warm_start import check_init_from
 
 #: Ground-truth columns of the benchmark table, with their labels.
@@ -88,8 +88,8 @@ def run_job(job: Job) -> dict:
         from ..policies import make_policy
 
         trained = False
-        env = make_env(job.config.env_id, job.config.eval_env_kwargs)
-        rows = run_episodes(env, PolicyActor(make_policy(job.variant)), range(job.episode_seed,
+        env = make_agent_env(job.config.env_id, job.config.eval_env_kwargs)
+        rows = play_episodes(env, PolicyActor(make_policy(job.variant)), range(job.episode_seed,
                                                                              job.episode_seed + job.episodes))
         env.close()
     for row in rows:

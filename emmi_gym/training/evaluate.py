@@ -7,9 +7,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from ..experiments.episodes import ModelActor, run_episodes
+from ..experiments.episodes import ModelActor, play_episodes
 from .model_files import load_model_file
-from .train import load_run_config, make_env
+from .train import load_run_config, make_agent_env
 
 #: ``world`` of :func:`compare_model` that means the run's evaluation env's own world.
 OWN_WORLD = object()
@@ -47,14 +47,14 @@ def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, 
     caller has loaded it already)."""
     model_path = Path(model_path)
     model, config = load_model(model_path, config)
-    env = make_env(config.env_id, config.eval_env_kwargs, render_mode="rgb_array" if video_dir else None)
+    env = make_agent_env(config.env_id, config.eval_env_kwargs, render_mode="rgb_array" if video_dir else None)
     if video_dir is not None:
         from gymnasium.wrappers import RecordVideo
 
         env = RecordVideo(env, str(video_dir), episode_trigger=lambda _: True, name_prefix=model_path.stem,
                           disable_logger=True)
     try:
-        return run_episodes(env, ModelActor(model), range(seed, seed + episodes))
+        return play_episodes(env, ModelActor(model), range(seed, seed + episodes))
     finally:
         env.close()
 
@@ -99,7 +99,7 @@ def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> li
     """``front.png`` (map quality against robot time, a point per policy) and, beside a baseline,
     ``maps.png``: the episode where the model's accuracy against the oracle map differs most from the
     first baseline's (among those where it went back, if any), both maps with where it went back."""
-    from ..experiments.comparison import plot_front, plot_pair, run_episode
+    from ..experiments.comparison import play_on_world, plot_front, plot_pair
 
     out = Path(out)
     plot_front(rows, out / "front.png")
@@ -112,7 +112,7 @@ def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> li
         world, seed = max(sorted(went_back), key=lambda key: abs(gaps[key]))
         settings, _ = comparison_settings(load_run_config(Path(model_path)))
         world = None if world == "None" else world  # rows name a generated world "None"
-        episodes = [run_episode(world, seed, policy, settings, keep_maps=True, keep_steps=True)
+        episodes = [play_on_world(world, seed, policy, settings, keep_maps=True, keep_steps=True)
                     for policy in (TrainedAgent(str(model_path), name), baselines[0])]
         plot_pair(episodes, out / "maps.png")
         written.append(out / "maps.png")

@@ -92,7 +92,7 @@ def set_torch_threads(threads: int | None = None) -> int:
     return threads
 
 
-def make_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_worker: bool = False) -> gym.Env:
+def make_agent_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_worker: bool = False) -> gym.Env:
     """``gym.make`` of an emmi_gym id, wrapped to report the episode's loop order (:class:`LoopOrderInfo`);
     importable by reference, so spawned workers can build it. In a ``vec_worker`` (a subprocess of
     vectorised envs) Ctrl-C is ignored (the main process handles it and closes the workers) and the
@@ -123,10 +123,10 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, e
     if vec_env == "ray":
         from .ray_vec_env import RayVecEnv
 
-        return sb3_make_vec_env(partial(make_env, config.env_id, kwargs), n_envs=n_envs, seed=seed,
+        return sb3_make_vec_env(partial(make_agent_env, config.env_id, kwargs), n_envs=n_envs, seed=seed,
                                 vec_env_cls=RayVecEnv, vec_env_kwargs={"address": ray_address})
     subprocesses = _subprocesses(n_envs, vec_env)
-    return sb3_make_vec_env(partial(make_env, config.env_id, kwargs, vec_worker=subprocesses),
+    return sb3_make_vec_env(partial(make_agent_env, config.env_id, kwargs, vec_worker=subprocesses),
                             n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if subprocesses else DummyVecEnv)
 
 
