@@ -393,16 +393,19 @@ def _add_ab_options(parser: argparse.ArgumentParser, seeds: int, particles: int,
     parser.set_defaults(func=_cmd_ab)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="emmi-gym", description=DESCRIPTION)
-    sub = parser.add_subparsers(dest="command", required=True)
+def _add_demo_parser(sub) -> None:
     demo = sub.add_parser("demo", help="the paper's loop-closure experiment in small: A vs B on 3 seeds, "
                                        "figures and summary in well under a minute")
     _add_ab_options(demo, seeds=3, particles=10, out="emmi_demo")
+
+
+def _add_ab_parser(sub) -> None:
     ab = sub.add_parser("ab", help="the paper's A/B loop-closure experiment (Fig. 6): close the loop first "
                                    "(A) vs explore first (B), over seeds, with figures, CSVs and intervals")
     _add_ab_options(ab, seeds=20, particles=15, out="ab_out")
 
+
+def _add_train_parser(sub) -> None:
     tr = sub.add_parser("train", help="train an SB3 agent from a configuration in agents/")
     tr.add_argument("config", help="agent configuration (.yaml), e.g. agents/ppo_emmi.yaml")
     tr.add_argument("--timesteps", type=_integer(1), default=None, help="override total_timesteps")
@@ -428,6 +431,8 @@ def build_parser() -> argparse.ArgumentParser:
                               "in this process")
     tr.set_defaults(func=_cmd_train)
 
+
+def _add_clone_parser(sub) -> None:
     cl = sub.add_parser("clone", help="behaviour cloning: fit a configuration's model to a scripted policy's "
                                       "decisions, a warm start for 'train --init-from'")
     cl.add_argument("config", help="agent configuration (.yaml) of a waypoint env, e.g. agents/ppo_plans_emmi.yaml")
@@ -444,6 +449,8 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--quiet", action="store_true", help="no progress bar")
     cl.set_defaults(func=_cmd_clone)
 
+
+def _add_evaluate_parser(sub) -> None:
     ev = sub.add_parser("evaluate", help="run a trained model on held-out episodes: return and ground-truth "
                                          "metrics, beside the scripted baselines on the same episodes if asked")
     ev.add_argument("model", nargs="?", default=None,
@@ -466,6 +473,8 @@ def build_parser() -> argparse.ArgumentParser:
     _torch_threads_option(ev, "1: the env's kernels need the cores")
     ev.set_defaults(func=_cmd_evaluate)
 
+
+def _add_benchmark_parser(sub) -> None:
     bench = sub.add_parser("benchmark", help="train agents per reward variant and compare them, and the scripted "
                                              "baselines, under the same ground-truth metrics")
     bench.add_argument("--config", default="agents/ppo_emmi.yaml",
@@ -488,9 +497,13 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--quiet", action="store_true", help="no progress bar")
     bench.set_defaults(func=_cmd_benchmark)
 
+
+def _add_metrics_parser(sub) -> None:
     metrics = sub.add_parser("metrics", help="show EMMI vs the joint entropy on the paper's Fig. 5 example")
     metrics.set_defaults(func=_cmd_metrics)
 
+
+def _add_record_parser(sub) -> None:
     record = sub.add_parser("record", help="drive named routes through a world and write a CARMEN log")
     record.add_argument("world", help="built-in world name or a world .yaml file")
     record.add_argument("--route", nargs="+", default=["to_decision", "close_loop"],
@@ -501,6 +514,8 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("--out", default="run.log")
     record.set_defaults(func=_cmd_record)
 
+
+def _add_replay_parser(sub) -> None:
     rep = sub.add_parser("replay", help="run the RBPF and the certainty metrics on a CARMEN log")
     rep.add_argument("log", help="CARMEN log, plain or .gz (ODOM, FLASER, RAWLASER1, ROBOTLASER1, TRUEPOS lines)")
     rep.add_argument("--particles", type=_integer(1), default=15)
@@ -524,8 +539,15 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--quiet", action="store_true", help="no progress bar")
     rep.set_defaults(func=_cmd_replay)
 
-    for command in (score_checkpoints, learning_curves, compare_policies):
-        command.add_parser(sub)
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``emmi-gym`` parser: one subparser per command, each built by its own function."""
+    parser = argparse.ArgumentParser(prog="emmi-gym", description=DESCRIPTION)
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add_parser in (_add_demo_parser, _add_ab_parser, _add_train_parser, _add_clone_parser, _add_evaluate_parser,
+                       _add_benchmark_parser, _add_metrics_parser, _add_record_parser, _add_replay_parser,
+                       score_checkpoints.add_parser, learning_curves.add_parser, compare_policies.add_parser):
+        add_parser(sub)
     return parser
 
 

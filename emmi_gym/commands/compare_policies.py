@@ -8,7 +8,7 @@ import argparse
 from ..inputs import arguments
 
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "compare-policies", help="two scripted policies on many worlds, paired by world and seed: mean [95%% "
                                  "interval] of each score and of the paired difference",
@@ -28,7 +28,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", default="results/plans", help="output folder (default results/plans)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
-    return parser
 
 
 def run(args: argparse.Namespace) -> int:

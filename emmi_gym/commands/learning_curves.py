@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "learning-curves", help="draw training runs' learning curves: the held-out evaluations' ground truth "
                                 "against decisions trained",
@@ -22,7 +22,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "benchmark_episodes.csv of 'emmi-gym benchmark'")
     parser.add_argument("--out", type=Path, required=True, help="the figure's file (no suffix: .png)")
     parser.set_defaults(func=run)
-    return parser
 
 
 def run(args: argparse.Namespace) -> int:

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..inputs import arguments
 
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "score-checkpoints", help="score every checkpoint of training runs on the same held-out episodes, in "
                                   "parallel: the learning curve of a run trained with eval.freq: 0",
@@ -22,7 +22,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "held out, as 'emmi-gym evaluate')")
     arguments.add_workers(parser)
     parser.set_defaults(func=run)
-    return parser
 
 
 def run(args: argparse.Namespace) -> int:
