@@ -14,6 +14,7 @@ import argparse
 
 import numpy as np
 
+from emmi_gym.inputs import arguments
 from emmi_gym.world.laser import LaserConfig
 from emmi_gym.world.loader import load_world
 from emmi_gym.world.presets import ODOMETRY_PRESETS, odometry_config
@@ -36,7 +37,7 @@ def errors_after(recording, distance: float) -> tuple[float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=30)
+    arguments.add_seed_range(parser, 30)
     parser.add_argument("--preset", default="typical", choices=[*ODOMETRY_PRESETS, "all"])
     args = parser.parse_args()
     world = load_world("loop_corridor")
@@ -48,7 +49,7 @@ def main() -> None:
     for preset in (ODOMETRY_PRESETS if args.preset == "all" else [args.preset]):
         sim = Simulator(world, laser=LaserConfig(n_beams=4), odometry=odometry_config(preset))
         results = {d: [] for d in DISTANCES}
-        for seed in range(args.seeds):
+        for seed in arguments.seed_range(args):
             rec = drive_route(sim, route, np.random.default_rng(seed))
             for d in DISTANCES:
                 results[d].append(errors_after(rec, d))

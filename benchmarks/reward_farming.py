@@ -21,6 +21,7 @@ import numpy as np
 import emmi_gym  # noqa: F401 (registers the ids)
 from emmi_gym.env.config import REWARDS
 from emmi_gym.env.registration import ENV_IDS
+from emmi_gym.inputs import arguments
 from emmi_gym.policies import make_policy
 
 HARD = {k: v for k, v in ENV_IDS["ExplorePlans-v0"].items() if k not in ("action_mode", "max_decisions")}
@@ -61,16 +62,17 @@ def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=5)
+    arguments.add_seed_range(parser, 5)
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--decisions", type=int, default=40)
     args = parser.parse_args()
     results = {}
     for name, command in VELOCITY_POLICIES.items():
-        results[f"{name} ({args.steps} steps)"] = [velocity_episode(command, s, args.steps) for s in range(args.seeds)]
+        results[f"{name} ({args.steps} steps)"] = [velocity_episode(command, s, args.steps)
+                                                   for s in arguments.seed_range(args)]
     for name in ("frontier", "active_loop_closing"):
         results[f"{name} (at most {args.decisions} decisions)"] = [
-            waypoint_episode(name, s, args.decisions) for s in range(args.seeds)]
+            waypoint_episode(name, s, args.decisions) for s in arguments.seed_range(args)]
     print(f"mean undiscounted return over {args.seeds} seeds (plans of dungeon_maps/train), time and collision "
           "costs included; in brackets: per 100 simulator steps")
     print("| policy | " + " | ".join(REWARDS) + " |")

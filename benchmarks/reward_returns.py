@@ -7,7 +7,7 @@ and final map quality, and the policy the reward prefers (emmi_gym/experiments/r
 
     python benchmarks/reward_returns.py --worlds dungeon_maps/train --plans 12 \\
         --policies frontier active_loop_closing random --out results/alignment_train
-    python benchmarks/reward_returns.py --env emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 0 1 2 3 \\
+    python benchmarks/reward_returns.py --env emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 4 \\
         --policies close_loop_first explore_first frontier --discounts none 0.95 0.9@100
 
 ``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
@@ -27,6 +27,7 @@ from _options import checked, json_object
 from emmi_gym.env import REWARDS, EnvConfig
 from emmi_gym.experiments.comparison import ComparisonSettings, compare_on, worlds_of
 from emmi_gym.experiments.reward_alignment import QUALITIES, Discount, alignment, markdown, policy_front
+from emmi_gym.inputs import arguments
 from emmi_gym.inputs.validation import build
 from emmi_gym.policies import POLICY_NAMES
 
@@ -36,15 +37,15 @@ def main() -> None:
     parser.add_argument("--env", default="emmi_gym/ExplorePlans-v0")
     parser.add_argument("--options", default="{}", help="JSON of further gym.make options")
     parser.add_argument("--worlds", nargs="+", default=["dungeon_maps/train"])
-    parser.add_argument("--plans", type=int, default=12, help="maps taken from each map set")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--plans", type=arguments.integer(1), default=12, help="maps taken from each map set")
+    arguments.add_seed_range(parser, 1)
     parser.add_argument("--policies", nargs="+", default=["frontier", "active_loop_closing", "random"],
                         choices=POLICY_NAMES)
     parser.add_argument("--rewards", nargs="+", default=list(REWARDS), choices=REWARDS)
     parser.add_argument("--time-costs", type=float, nargs="+", default=[0.0, EnvConfig.time_cost])
     parser.add_argument("--discounts", nargs="+", default=["none", "0.9@100", "0.99@100"],
                         help="'none', GAMMA (per decision) or GAMMA@STEPS (per STEPS simulator steps)")
-    parser.add_argument("--workers", type=int, default=None)
+    arguments.add_workers(parser)
     parser.add_argument("--out", type=Path, default=None, help="write summary.md and episodes.json here")
     args = parser.parse_args()
     if args.env not in gym.registry:
@@ -58,11 +59,12 @@ def main() -> None:
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
 
-    episodes = [(w, s) for w in worlds_of(args.worlds, args.plans) for s in args.seeds]
+    episodes = [(w, s) for w in worlds_of(args.worlds, args.plans) for s in arguments.seed_range(args)]
     rows = compare_on(episodes, args.policies, settings, workers=args.workers, keep_steps=True)
     results = alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES))
     title = (f"Reward alignment on {args.env}{f' {settings.env_options}' if settings.env_options else ''}: "
-             f"{len(episodes)} episodes ({', '.join(args.worlds)}; seeds {args.seeds}) of {', '.join(args.policies)}")
+             f"{len(episodes)} episodes ({', '.join(args.worlds)}; seeds from {args.first_seed}) of "
+             f"{', '.join(args.policies)}")
     table = markdown(results, policy_front(rows), title)
     print(table)
     if args.out is not None:

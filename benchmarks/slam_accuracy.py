@@ -26,6 +26,7 @@ import numpy as np
 from _options import checked, preset_or_fields, rbpf_config
 
 from emmi_gym.geometry.grid import GridGeometry
+from emmi_gym.inputs import arguments
 from emmi_gym.scoring.scores import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.slam import RBPF
 from emmi_gym.world import LaserConfig, OdometryNoise, Simulator, drive_route, load_world, rasterise
@@ -34,7 +35,7 @@ from emmi_gym.world.presets import laser_config, odometry_config
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=20)
+    arguments.add_seed_range(parser, 20)
     parser.add_argument("--particles", type=int, default=15)
     parser.add_argument("--slam", default="{}", help="RBPFConfig overrides as JSON")
     parser.add_argument("--laser", default=None, help="a laser preset name, or JSON fields with an optional preset")
@@ -52,7 +53,7 @@ def main() -> None:
     truth_grid = rasterise(world, 0.1, geometry).grid
     route = world.route("to_decision") + world.route("close_loop")[1:]
     rows = []
-    for seed in range(args.seeds):
+    for seed in arguments.seed_range(args):
         rec = drive_route(sim, route, np.random.default_rng(seed))
         slam = RBPF(config, max_range=laser.max_range, geometry=geometry)
         slam.reset(rec.odometry_poses[0], np.random.default_rng(1000 + seed))

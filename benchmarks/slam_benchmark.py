@@ -1,7 +1,7 @@
 """The RBPF on real laser logs: the radish-noisy set (Intel, ACES, CSAIL, Freiburg 079 x 3 odometry seeds).
 
     python benchmarks/slam_benchmark.py [--data ../shared/datasets/radish-noisy] [--logs intel aces]
-        [--seeds 0 1 2] [--particles 15] [--resolution 0.05] [--max-range 30] [--preset radish-noisy]
+        [--log-seeds 0 1 2] [--particles 15] [--resolution 0.05] [--max-range 30] [--preset radish-noisy]
         [--slam '{"insertion_range": 8}'] [--filter-seeds 0 1 2] [--out slam_benchmark] [--jobs 1]
         [--threads N] [--flaser-fov 180]
 
@@ -71,7 +71,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared/datasets/radish-noisy"))
     parser.add_argument("--logs", nargs="+", default=list(LOGS), choices=LOGS)
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    parser.add_argument("--log-seeds", nargs="+", type=int, default=[0, 1, 2],
+                        help="which odometry-noise versions of each log (the N of NAME-seedN.log.gz)")
     parser.add_argument("--particles", type=int, default=15)
     parser.add_argument("--resolution", type=float, default=0.05)
     parser.add_argument("--max-range", type=float, default=30.0,
@@ -89,7 +90,7 @@ def main() -> None:
                          particles=args.particles, resolution=args.resolution, linear_update=0.0,
                          angular_update=0.0)  # every keyframe an update
     data, out = Path(args.data), Path(args.out)
-    runs = [(data / f"{name}-seed{seed}.log.gz", f) for name in args.logs for seed in args.seeds
+    runs = [(data / f"{name}-seed{seed}.log.gz", f) for name in args.logs for seed in args.log_seeds
             for f in args.filter_seeds]
     require_files(parser, data, [p.name for p, _ in runs], "radish-noisy")
     out.mkdir(parents=True, exist_ok=True)

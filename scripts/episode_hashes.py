@@ -23,6 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym
+from emmi_gym.inputs import arguments
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG = ROOT / "tests" / "data" / "intel-first-loop.log.gz"
@@ -84,7 +85,7 @@ def replay_hash() -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    arguments.add_seed_range(parser, 2)
     parser.add_argument("--decisions", type=int, default=12, help="steps per waypoint episode")
     parser.add_argument("--velocity-steps", type=int, default=400, help="steps per velocity episode")
     args = parser.parse_args()
@@ -92,7 +93,7 @@ def main() -> None:
     ids = sorted(i for i in gym.registry if i.startswith("emmi_gym/"))
     for env_id in ids:
         steps = args.velocity_steps if "Velocity" in env_id else args.decisions
-        for seed in args.seeds:
+        for seed in arguments.seed_range(args):
             print(f"{env_id} seed={seed} {episode_hash(env_id, seed, steps)}", flush=True)
     print(f"replay {LOG.name} {replay_hash()}", flush=True)
 
