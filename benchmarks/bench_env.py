@@ -1,8 +1,9 @@
 """Environment steps per second for each id at default settings, and where the time goes.
 
-    python benchmarks/bench_env.py [--decisions 60] [--velocity-steps 10000] [--repeats 3] [--ids ExploreVelocity-v0 ...]
-                                [--options '{"slam": {"linear_update": 1.0}}'] [--against DIR]
-                                [--with-resets] [--threads 1]
+    python benchmarks/bench_env.py [--decisions 60] [--velocity-steps 10000] [--repeats 3]
+                                   [--ids ExploreVelocity-v0 ...]
+                                   [--options '{"slam": {"linear_update": 1.0}}'] [--against DIR]
+                                   [--with-resets] [--threads 1]
 
 Single process. For each id: reset (seed 0), then take a fixed number of env steps
 (random valid waypoint actions; random velocities; drawn from seed 0, so every run, and
@@ -41,6 +42,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from _timing import timed
 
 import emmi_gym
 from emmi_gym.concurrency.threads import set_kernel_threads
@@ -53,30 +55,6 @@ from emmi_gym.world import Simulator
 
 gym.register_envs(emmi_gym)
 REPO = Path(__file__).resolve().parent.parent
-
-
-_OPEN: list = []  # the timed calls under way, innermost last
-
-
-def timed(owner, name: str, bucket: dict, key: str) -> None:
-    """Accumulate the wall time of every call of ``owner.name`` (a class's method, or a function as the module
-    that calls it names it) into ``bucket[key]``, less the time of the timed calls made inside it (which go
-    to their own keys)."""
-    original = getattr(owner, name)
-
-    def wrapper(*args, **kwargs):
-        _OPEN.append(0.0)
-        t0 = time.perf_counter()
-        try:
-            return original(*args, **kwargs)
-        finally:
-            spent = time.perf_counter() - t0
-            inner = _OPEN.pop()
-            bucket[key] += spent - inner
-            if _OPEN:
-                _OPEN[-1] += spent
-
-    setattr(owner, name, wrapper)
 
 
 SPENT: dict = defaultdict(float)

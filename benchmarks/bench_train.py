@@ -45,13 +45,13 @@ from __future__ import annotations
 import argparse
 import copy
 import tempfile
-import time
 from collections import defaultdict
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
 import numpy as np
+from _timing import call_seconds, inside, timed
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from emmi_gym.concurrency.parallel import ProcessActor
@@ -60,33 +60,9 @@ from emmi_gym.training.config import algorithm_class, load_agent_config
 from emmi_gym.training.rollout_workers import RolloutWorker, RolloutWorkers, acting_of, is_masked
 from emmi_gym.training.train import make_env, model_of, set_torch_threads, train, training_torch_threads
 
-from _timing import call_seconds
-
 SPENT: dict = defaultdict(float)
-EVALUATING: list = []  # True while the periodic evaluation plays (its env's steps are not the training's)
 #: Worker counts the efficiency is predicted for (besides the run's own).
 PREDICTED_WORKERS = (16, 64)
-
-
-def timed(cls, name: str, key: str, when=lambda self: True, marks: list | None = None) -> None:
-    """Add the wall time of every call of ``cls.name`` (for which ``when(self)`` holds) to ``SPENT[key]``;
-    ``marks`` holds True during such calls."""
-    original = getattr(cls, name)
-
-    def wrapper(self, *args, **kwargs):
-        if not when(self):
-            return original(self, *args, **kwargs)
-        if marks is not None:
-            marks.append(True)
-        t0 = time.perf_counter()
-        try:
-            return original(self, *args, **kwargs)
-        finally:
-            SPENT[key] += time.perf_counter() - t0
-            if marks is not None:
-                marks.clear()
-
-    setattr(cls, name, wrapper)
 
 
 def single_thread_decision_seconds(config, decisions: int) -> np.ndarray:
@@ -148,11 +124,12 @@ def main() -> None:
 
     set_torch_threads(training_torch_threads(config))  # as emmi-gym train: the same network as it trains
     cls = algorithm_class(config.algorithm)
-    timed(cls, "train", "learning")
+    timed(cls, "train", SPENT, "learning")
     for vec_cls, method in ((RolloutWorkers, "play"), (RolloutWorkers, "reset"), (SubprocVecEnv, "step_wait"),
                             (SubprocVecEnv, "reset"), (DummyVecEnv, "step_wait"), (DummyVecEnv, "reset")):
-        timed(vec_cls, method, "waiting for the envs", when=lambda env: not EVALUATING)
-    timed(callbacks.GroundTruthEvalMixin, "_on_step", "evaluation", marks=EVALUATING,
+        # the periodic evaluation's env steps are not the training's
+        timed(vec_cls, method, SPENT, "waiting for the envs", when=lambda env, *args: not inside("evaluation"))
+    timed(callbacks.GroundTruthEvalMixin, "_on_step", SPENT, "evaluation",
           when=lambda cb: cb.eval_freq > 0 and cb.n_calls % cb.eval_freq == 0)  # as the callback decides
     with tempfile.TemporaryDirectory() as scratch:
         result = train(config, Path(args.out or scratch) / "run", progress=False)
