@@ -284,3 +284,12 @@ def test_the_cli_page_lists_every_subcommand():
     commands = set(re.search(r"\{([\w,-]+)\}", parser.format_usage()).group(1).split(","))
     listed = set(re.findall(r"^\| `emmi-gym ([\w-]+)", (DOCS / "cli.md").read_text(), re.MULTILINE))
     assert listed == commands, f"docs/cli.md lists {sorted(listed - commands)} and lacks {sorted(commands - listed)}"
+
+
+def test_no_user_page_runs_a_maintainer_script():
+    """What users are told to run is installed with the package (an ``emmi-gym`` subcommand) or a benchmark;
+    scripts/ holds the maintainers' tools, which CONTRIBUTING.md names."""
+    pages = [ROOT / "README.md", *DOCS.rglob("*.md")]
+    runs = [f"{page.relative_to(ROOT)}: {line.strip()}" for page in pages for line in page.read_text().splitlines()
+            if re.search(r"python3? (?:\./)?scripts/", line)]
+    assert not runs, f"user pages run files of scripts/: {runs}"
