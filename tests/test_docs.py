@@ -293,3 +293,15 @@ def test_no_user_page_runs_a_maintainer_script():
     runs = [f"{page.relative_to(ROOT)}: {line.strip()}" for page in pages for line in page.read_text().splitlines()
             if re.search(r"python3? (?:\./)?scripts/", line)]
     assert not runs, f"user pages run files of scripts/: {runs}"
+
+
+def test_the_benchmarks_index_lists_every_script_and_the_pages_that_cite_it():
+    index = (ROOT / "benchmarks" / "README.md").read_text()
+    listed = dict(re.findall(r"^\| `(\w+\.py)` \| .* \| (.+) \|$", index, re.MULTILINE))
+    scripts = {p.name for p in (ROOT / "benchmarks").glob("*.py") if not p.name.startswith("_")}
+    assert set(listed) == scripts, f"benchmarks/README.md lists {sorted(set(listed) - scripts)}, " \
+                                   f"lacks {sorted(scripts - set(listed))}"
+    for script, cited_by in listed.items():
+        pages = re.findall(r"\]\(\.\./(docs/[\w/.-]+\.md)", cited_by)
+        assert pages and all((ROOT / page).exists() for page in pages), f"{script}: cited by {cited_by}"
+        assert all(script in (ROOT / page).read_text() for page in pages), f"{script}: not on all of {pages}"
