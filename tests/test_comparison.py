@@ -78,11 +78,3 @@ def test_compare_policies_command_refuses_bad_options_in_one_line(tmp_path, caps
     assert done.value.code == 2 and err.startswith("emmi-gym compare-policies: error: ") and message in err, err
     assert len(err.splitlines()) == 1 and not (tmp_path / "out").exists()
 
-
-def test_seeds_is_a_count_in_every_command():
-    from emmi_gym.cli import build_parser
-
-    parser = build_parser()
-    for command in (["ab"], ["demo"], ["benchmark"], ["compare-policies"]):
-        args = parser.parse_args([*command, "--seeds", "3", "--first-seed", "7"])
-        assert (args.seeds, args.first_seed) == (3, 7), command
