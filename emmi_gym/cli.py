@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .commands import compare_policies, learning_curves, score_checkpoints
+from .commands import compare_policies, learning_curves, metrics, record, replay, score_checkpoints
 from .inputs import arguments
 
 DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMMI reward: run the paper's A/B "
@@ -17,95 +17,6 @@ _integer, _number, _SEED, _EPISODES = arguments.integer, arguments.number, argum
 #: Bounds of the A/B options, as the env's configuration bounds them (``slam.config.MAX_PARTICLES``,
 #: ``EnvConfig.max_decisions``), checked here, before the worker processes start.
 MAX_PARTICLES, MAX_DECISIONS = 1000, 1_000_000
-
-
-def _cmd_metrics(args: argparse.Namespace) -> int:
-    from .certainty.examples import fig5_contrast
-
-    rows = fig5_contrast()
-    keys = list(rows[0])
-    print("Fig. 5 of Blanco et al. (IROS 2006): two equally weighted particles that agree or")
-    print("disagree (p = 0.01 vs 0.99) on a 10x10 patch of a 40x40 map.\n")
-    print(" | ".join(f"{k:>22}" for k in keys))
-    for row in rows:
-        print(" | ".join(f"{row[k]:>22.4f}" if isinstance(row[k], float) else f"{row[k]:>22}" for k in keys))
-    agree, disagree = rows
-    print(f"\nEMMI falls by {agree['emmi_bits'] - disagree['emmi_bits']:.3f} bits/cell when the particles disagree;")
-    change = disagree["map_entropy_term_bits"] - agree["map_entropy_term_bits"]
-    print(f"the joint entropy's map term changes by {change:.3f} bits.")
-    return 0
-
-
-def _cmd_record(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from .inputs.paths import output_file
-    from .world import LaserConfig, Simulator, drive_route, load_world, write_carmen
-
-    output_file(args.out)
-    world = load_world(args.world)
-    waypoints = []
-    for name in args.route:
-        route = world.route(name)
-        waypoints.extend(route if not waypoints else route[1:])
-    sim = Simulator(world, laser=LaserConfig(n_beams=args.beams, max_range=args.max_range))
-    rec = drive_route(sim, waypoints, np.random.default_rng(args.seed))
-    write_carmen(rec, sim, args.out)
-    drift = float(np.hypot(*(rec.true_poses[-1, :2] - rec.odometry_poses[-1, :2])))
-    status = "reached the end of the route" if rec.reached else "stopped before the end of the route"
-    print(f"wrote {args.out}: {len(rec.times)} scans over {rec.times[-1]:.1f} s in '{world.name}' ({status}); "
-          f"dead reckoning ends {drift:.2f} m from the truth; {int(rec.collisions.sum())} collision steps")
-    return 0 if rec.reached else 1
-
-
-def _cmd_replay(args: argparse.Namespace) -> int:
-    import math
-
-    import numpy as np
-
-    from .experiments.replay import replay, tum_problem, tum_warning, write_outputs
-    from .formats.carmen import read_log
-    from .inputs.paths import output_folder
-    from .slam import RBPFConfig
-
-    output_folder(args.out)  # before the run, which would otherwise be lost at its end
-    options = dict(particles=args.particles, resolution=args.resolution, insertion_range=args.insertion_range,
-                   matching_range=args.matching_range)
-    config = RBPFConfig(**options) if args.preset is None else RBPFConfig.preset(args.preset, **options)
-    log = read_log(args.log, skip_bad_lines=args.skip_bad_lines, flaser_fov=math.radians(args.flaser_fov),
-                   progress=not args.quiet)
-    for sentence in log.timing:  # now, not after a run of minutes
-        print(f"{args.log}: warning: {sentence}", file=sys.stderr)
-    try:
-        result = replay(log, config, max_range=args.max_range, seed=args.seed, progress=not args.quiet,
-                        every_scan=args.every_scan)
-    except ValueError as exc:  # what the log lacks (lasers, odometry, a maximum range) or asks (maps too large)
-        raise ValueError(f"{args.log}: {exc}") from None
-    if not result.rows:
-        raise ValueError(f"{args.log}: no scan could be used (none had odometry)")
-    files = write_outputs(result, args.out)
-    last = result.rows[-1]
-    print(f"{args.log}: {result.scans_used} scans, {len(result.rows)} RBPF updates "
-          f"({args.particles} particles, {args.resolution} m cells)")
-    for sentence in log.report():
-        print(sentence)
-    if tum_problem(result) is not None:
-        print(f"no best_trajectory.tum: {tum_problem(result)}")
-    elif tum_warning(result) is not None:
-        print(f"best_trajectory.tum: {tum_warning(result)}")
-    if result.scans_without_odometry:
-        print(f"skipped {result.scans_without_odometry} scans that came before any odometry")
-    times = [r.update_ms for r in result.rows[1:]] or [last.update_ms]
-    print(f"median update {np.median(times):.2f} ms; final EMMI {last.emmi:.3f} bits/cell, "
-          f"pose entropy {last.pose_entropy:.2f} nats, Neff {last.neff:.1f}, "
-          f"{sum(r.resampled for r in result.rows)} resamplings")
-    ate = result.ate()
-    if ate is not None:
-        print(f"ATE of the best particle against TRUEPOS: {ate:.3f} m "
-              f"(dead reckoning {result.dead_reckoning_ate():.3f} m)")
-    for path in files.values():
-        print(f"wrote {path}")
-    return 0
 
 
 def _ab_setting(args: argparse.Namespace) -> dict:
@@ -498,54 +409,12 @@ def _add_benchmark_parser(sub) -> None:
     bench.set_defaults(func=_cmd_benchmark)
 
 
-def _add_metrics_parser(sub) -> None:
-    metrics = sub.add_parser("metrics", help="show EMMI vs the joint entropy on the paper's Fig. 5 example")
-    metrics.set_defaults(func=_cmd_metrics)
-
-
-def _add_record_parser(sub) -> None:
-    record = sub.add_parser("record", help="drive named routes through a world and write a CARMEN log")
-    record.add_argument("world", help="built-in world name or a world .yaml file")
-    record.add_argument("--route", nargs="+", default=["to_decision", "close_loop"],
-                        help="route names of the world, driven one after the other (default: to_decision close_loop)")
-    record.add_argument("--seed", type=_SEED, default=0)
-    record.add_argument("--beams", type=_integer(1), default=180)
-    record.add_argument("--max-range", type=_number(0.0, unit="m"), default=8.0)
-    record.add_argument("--out", default="run.log")
-    record.set_defaults(func=_cmd_record)
-
-
-def _add_replay_parser(sub) -> None:
-    rep = sub.add_parser("replay", help="run the RBPF and the certainty metrics on a CARMEN log")
-    rep.add_argument("log", help="CARMEN log, plain or .gz (ODOM, FLASER, RAWLASER1, ROBOTLASER1, TRUEPOS lines)")
-    rep.add_argument("--particles", type=_integer(1), default=15)
-    rep.add_argument("--resolution", type=_number(0.0, unit="m"), default=0.1, help="cell size, metres")
-    rep.add_argument("--max-range", type=_number(0.0, unit="m"), default=None,
-                     help="laser range limit, metres (default: from the log; FLASER logs need it)")
-    rep.add_argument("--seed", type=_SEED, default=0)
-    rep.add_argument("--skip-bad-lines", action="store_true", help="skip and count malformed lines")
-    rep.add_argument("--every-scan", action="store_true",
-                     help="make every scan an update (logs of keyframes; default: after 0.5 m or 0.3 rad)")
-    rep.add_argument("--flaser-fov", type=_number(0.0, 360.0, "degrees"), default=180.0,
-                     help="field of view of FLASER lines, degrees")
-    rep.add_argument("--preset", default=None,
-                     help="RBPF settings for a known kind of log (radish-noisy: the classic CARMEN logs with "
-                          "shared/datasets' odometry noise); default: the simulator's")
-    rep.add_argument("--insertion-range", type=_number(0.0, unit="m"), default=None,
-                     help="echoes beyond this only free cells up to it (default: the sensor's range)")
-    rep.add_argument("--matching-range", type=_number(0.0, unit="m"), default=None,
-                     help="beams beyond this are left out of matching and weights (default: the sensor's range)")
-    rep.add_argument("--out", default="replay_out", help="folder for metrics.csv and the PNGs")
-    rep.add_argument("--quiet", action="store_true", help="no progress bar")
-    rep.set_defaults(func=_cmd_replay)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``emmi-gym`` parser: one subparser per command, each built by its own function."""
     parser = argparse.ArgumentParser(prog="emmi-gym", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="command", required=True)
     for add_parser in (_add_demo_parser, _add_ab_parser, _add_train_parser, _add_clone_parser, _add_evaluate_parser,
-                       _add_benchmark_parser, _add_metrics_parser, _add_record_parser, _add_replay_parser,
+                       _add_benchmark_parser, metrics.add_parser, record.add_parser, replay.add_parser,
                        score_checkpoints.add_parser, learning_curves.add_parser, compare_policies.add_parser):
         add_parser(sub)
     return parser

@@ -24,7 +24,7 @@ ALLOWED = {
                     "policies"},
     "training": {"inputs", "concurrency", "env", "policies", "experiments"},
     "pretrained": {"training"},
-    "commands": {"inputs", "env", "policies", "experiments", "training"},
+    "commands": {"inputs", "certainty", "formats", "world", "slam", "env", "policies", "experiments", "training"},
 }
 
 

@@ -1,0 +1,41 @@
+"""``emmi-gym record``: drive a world's named routes and write a CARMEN log (:mod:`emmi_gym.world`)."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..inputs import arguments
+
+
+def add_parser(subparsers) -> None:
+    record = subparsers.add_parser("record", help="drive named routes through a world and write a CARMEN log")
+    record.add_argument("world", help="built-in world name or a world .yaml file")
+    record.add_argument("--route", nargs="+", default=["to_decision", "close_loop"],
+                        help="route names of the world, driven one after the other (default: to_decision close_loop)")
+    record.add_argument("--seed", type=arguments.SEED, default=0)
+    record.add_argument("--beams", type=arguments.integer(1), default=180)
+    record.add_argument("--max-range", type=arguments.number(0.0, unit="m"), default=8.0)
+    record.add_argument("--out", default="run.log", help="the log file to write (default run.log)")
+    record.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ..inputs.paths import output_file
+    from ..world import LaserConfig, Simulator, drive_route, load_world, write_carmen
+
+    output_file(args.out)
+    world = load_world(args.world)
+    waypoints = []
+    for name in args.route:
+        route = world.route(name)
+        waypoints.extend(route if not waypoints else route[1:])
+    sim = Simulator(world, laser=LaserConfig(n_beams=args.beams, max_range=args.max_range))
+    rec = drive_route(sim, waypoints, np.random.default_rng(args.seed))
+    write_carmen(rec, sim, args.out)
+    drift = float(np.hypot(*(rec.true_poses[-1, :2] - rec.odometry_poses[-1, :2])))
+    status = "reached the end of the route" if rec.reached else "stopped before the end of the route"
+    print(f"wrote {args.out}: {len(rec.times)} scans over {rec.times[-1]:.1f} s in '{world.name}' ({status}); "
+          f"dead reckoning ends {drift:.2f} m from the truth; {int(rec.collisions.sum())} collision steps")
+    return 0 if rec.reached else 1
