@@ -48,6 +48,7 @@ import emmi_gym
 from emmi_gym.concurrency.threads import set_kernel_threads
 from emmi_gym.env import ENV_IDS, EmmiEnv, emmi_env
 from emmi_gym.env.observation import OBSERVATION_TYPES
+from emmi_gym.inputs import arguments
 from emmi_gym.navigation import executor
 from emmi_gym.scoring.oracle import OracleMap
 from emmi_gym.slam import RBPF
@@ -193,9 +194,11 @@ def report(env_id: str, n_steps: int, repeats: int, options: dict, with_resets: 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--decisions", type=int, default=60, help="env steps of each waypoint id")
-    parser.add_argument("--velocity-steps", type=int, default=10000, help="env steps of ExploreVelocity-v0")
-    parser.add_argument("--repeats", type=int, default=3, help="runs of the same episodes; the median is shown")
+    parser.add_argument("--decisions", type=arguments.integer(1), default=60, help="env steps of each waypoint id")
+    parser.add_argument("--velocity-steps", type=arguments.integer(1), default=10000,
+                        help="env steps of ExploreVelocity-v0")
+    parser.add_argument("--repeats", type=arguments.integer(1), default=3,
+                        help="runs of the same episodes; the median is shown")
     parser.add_argument("--ids", nargs="+", choices=ENV_IDS, default=list(ENV_IDS), help="which environments")
     parser.add_argument("--against", metavar="DIR", help="a checkout of other code (git worktree add DIR REV): "
                         "play the same steps with both, in turns, and print the ratio of their times")
@@ -203,7 +206,7 @@ def main() -> None:
                         "setting's speed: its episodes differ), e.g. '{\"particles\": 8}'; not with --against")
     parser.add_argument("--with-resets", action="store_true", help="count the reset after an episode's last step "
                         "with that step (whole decisions, as training waits for them)")
-    parser.add_argument("--threads", type=int, choices=range(1, 257), metavar="N",
+    parser.add_argument("--threads", type=arguments.integer(1, 256), metavar="N",
                         help="threads of the kernels (default: one per core)")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()

@@ -37,6 +37,7 @@ from emmi_gym.concurrency.threads import set_kernel_threads
 from emmi_gym.experiments.replay import laser_stream
 from emmi_gym.formats import carmen
 from emmi_gym.geometry.grid import GridGeometry
+from emmi_gym.inputs import arguments
 from emmi_gym.scoring.scores import absolute_trajectory_error
 from emmi_gym.slam import RBPF, RBPFConfig
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world, write_carmen
@@ -73,15 +74,17 @@ def run(rec, angles, config: RBPFConfig, geometry: GridGeometry, scans: int | No
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--particles", type=int, default=15)
-    parser.add_argument("--resolution", type=float, default=0.05)
-    parser.add_argument("--metres", type=float, default=323.0, help="how much of the ACES path to drive")
+    parser.add_argument("--particles", type=arguments.integer(1), default=15)
+    parser.add_argument("--resolution", type=arguments.number(0.0, unit="m"), default=0.05)
+    parser.add_argument("--metres", type=arguments.number(0.0, unit="m"), default=323.0,
+                        help="how much of the ACES path to drive")
     parser.add_argument("--data", type=Path,
                         default=Path(__file__).resolve().parents[2] / "shared" / "datasets" / "carmen")
     parser.add_argument("--out", type=Path, default=None, help="also write the drive as a CARMEN log")
-    parser.add_argument("--threads", type=int, default=None, help="kernel threads (default: one per core)")
+    parser.add_argument("--threads", type=arguments.integer(1), default=None,
+                        help="kernel threads (default: one per core)")
     parser.add_argument("--slam", default="{}", help="RBPFConfig overrides as JSON")
-    parser.add_argument("--filter-seeds", nargs="+", type=int, default=[1], help="the filter's random seeds")
+    parser.add_argument("--filter-seeds", nargs="+", type=arguments.SEED, default=[1], help="the filter's random seeds")
     args = parser.parse_args()
     require_files(parser, args.data, ["aces-corrected.log.gz"], "carmen")
     config = rbpf_config(parser, args.slam, particles=args.particles, resolution=args.resolution)

@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from emmi_gym.geometry.grid import GridGeometry
+from emmi_gym.inputs import arguments
 from emmi_gym.slam import RBPF, RBPFConfig
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world
 
@@ -54,7 +55,7 @@ def run(particles: int, n_beams: int, recorded=None, side: float | None = None):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--particles", type=int, default=15)
+    parser.add_argument("--particles", type=arguments.integer(1), default=15)
     parser.add_argument("--table", action="store_true")
     parser.add_argument("--extents", action="store_true")
     args = parser.parse_args()

@@ -55,6 +55,7 @@ from _timing import call_seconds, inside, timed
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from emmi_gym.concurrency.parallel import ProcessActor
+from emmi_gym.inputs import arguments
 from emmi_gym.training import callbacks
 from emmi_gym.training.config import algorithm_class, load_agent_config
 from emmi_gym.training.rollout_workers import RolloutWorker, RolloutWorkers, acting_of, is_masked
@@ -107,10 +108,10 @@ def predicted_efficiency(times: np.ndarray, workers: int, n_steps: int, learner_
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="agents/ppo_plans_emmi.yaml")
-    parser.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
-    parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    parser.add_argument("--timesteps", type=arguments.integer(1), default=None, help="override total_timesteps")
+    parser.add_argument("--n-envs", type=arguments.integer(1), default=None, help="override n_envs")
     parser.add_argument("--vec-env", default=None, help="override vec_env")
-    parser.add_argument("--single", type=int, default=None,
+    parser.add_argument("--single", type=arguments.integer(1), default=None,
                         help="decisions per env of the worker playing alone (default n_steps: the first fragments)")
     parser.add_argument("--out", default=None, help="run folder (default: a temporary one, removed after)")
     args = parser.parse_args()

@@ -24,6 +24,7 @@ import numpy as np
 
 import emmi_gym
 from emmi_gym.concurrency.parallel import one_kernel_thread
+from emmi_gym.inputs import arguments
 
 gym.register_envs(emmi_gym)
 
@@ -103,8 +104,8 @@ def sb3_vec(env_id: str, n: int, subprocess: bool, seconds: float) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env-id", default="emmi_gym/ExploreVelocity-v0")
-    parser.add_argument("--seconds", type=float, default=20.0)
-    parser.add_argument("--envs", type=int, nargs="+", default=[2, 4, 8])
+    parser.add_argument("--seconds", type=arguments.number(0.0, unit="s"), default=20.0)
+    parser.add_argument("--envs", type=arguments.integer(1), nargs="+", default=[2, 4, 8])
     args = parser.parse_args()
     print(f"{args.env_id} on {os.cpu_count()} cores, {args.seconds:.0f} s per setting")
     rows = [("single process", 1, single(args.env_id, args.seconds))]

@@ -21,6 +21,7 @@ import numpy as np
 import pymunk
 from _timing import median_seconds
 
+from emmi_gym.inputs import arguments
 from emmi_gym.world import GeneratorConfig, generate_world, rasterise
 from emmi_gym.world.loader import load_world
 from emmi_gym.world.simulator import Simulator
@@ -43,7 +44,7 @@ def free_poses(world, n: int, rng) -> np.ndarray:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=500)
+    parser.add_argument("--repeats", type=arguments.integer(1), default=500)
     args = parser.parse_args()
     rng = np.random.default_rng(1)
     load = 1e3 * median_seconds(lambda: load_world(PLAN), 20)

@@ -24,6 +24,7 @@ from scipy import ndimage
 
 from emmi_gym.experiments.replay import laser_stream, log_extent
 from emmi_gym.formats import carmen
+from emmi_gym.inputs import arguments
 from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam.occupancy import ParticleMaps
 from emmi_gym.slam.sensor_model import CellCodes
@@ -79,9 +80,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "datasets" /
                         "carmen")
-    parser.add_argument("--resolution", type=float, default=0.1)
-    parser.add_argument("--insertion-range", type=float, default=15.0)
-    parser.add_argument("--hole-area", type=float, default=1.0, help="m^2")
+    parser.add_argument("--resolution", type=arguments.number(0.0, unit="m"), default=0.1)
+    parser.add_argument("--insertion-range", type=arguments.number(0.0, unit="m"), default=15.0)
+    parser.add_argument("--hole-area", type=arguments.number(0.0, unit="m^2"), default=1.0, help="m^2")
     args = parser.parse_args()
     require_files(parser, args.data, [f"{log_name}-corrected.log.gz" for log_name in BUILDINGS.values()], "carmen")
     OUT.mkdir(parents=True, exist_ok=True)

@@ -63,8 +63,8 @@ def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     arguments.add_seed_range(parser, 5)
-    parser.add_argument("--steps", type=int, default=300)
-    parser.add_argument("--decisions", type=int, default=40)
+    parser.add_argument("--steps", type=arguments.integer(1), default=300)
+    parser.add_argument("--decisions", type=arguments.integer(1), default=40)
     args = parser.parse_args()
     results = {}
     for name, command in VELOCITY_POLICIES.items():

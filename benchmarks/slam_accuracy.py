@@ -36,7 +36,7 @@ from emmi_gym.world.presets import laser_config, odometry_config
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     arguments.add_seed_range(parser, 20)
-    parser.add_argument("--particles", type=int, default=15)
+    parser.add_argument("--particles", type=arguments.integer(1), default=15)
     parser.add_argument("--slam", default="{}", help="RBPFConfig overrides as JSON")
     parser.add_argument("--laser", default=None, help="a laser preset name, or JSON fields with an optional preset")
     parser.add_argument("--odometry", default=None, help="an odometry preset name, or JSON fields")

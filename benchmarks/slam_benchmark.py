@@ -35,6 +35,7 @@ from _options import rbpf_config
 from emmi_gym.concurrency.threads import set_kernel_threads
 from emmi_gym.experiments.replay import replay, write_map_png, write_tum
 from emmi_gym.formats.carmen import read_log
+from emmi_gym.inputs import arguments
 from emmi_gym.slam import RBPFConfig
 
 LOGS = ("intel", "aces", "csail", "freiburg-079")
@@ -71,19 +72,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared/datasets/radish-noisy"))
     parser.add_argument("--logs", nargs="+", default=list(LOGS), choices=LOGS)
-    parser.add_argument("--log-seeds", nargs="+", type=int, default=[0, 1, 2],
+    parser.add_argument("--log-seeds", nargs="+", type=arguments.integer(0), default=[0, 1, 2],
                         help="which odometry-noise versions of each log (the N of NAME-seedN.log.gz)")
-    parser.add_argument("--particles", type=int, default=15)
-    parser.add_argument("--resolution", type=float, default=0.05)
-    parser.add_argument("--max-range", type=float, default=30.0,
+    parser.add_argument("--particles", type=arguments.integer(1), default=15)
+    parser.add_argument("--resolution", type=arguments.number(0.0, unit="m"), default=0.05)
+    parser.add_argument("--max-range", type=arguments.number(0.0, unit="m"), default=30.0,
                         help="readings at or beyond it are no echo (the logs mark them 81.83 m or 50 m)")
     parser.add_argument("--preset", default="radish-noisy", help="RBPFConfig preset ('none': the defaults)")
     parser.add_argument("--slam", default="{}", help="further RBPFConfig fields as JSON")
-    parser.add_argument("--filter-seeds", nargs="+", type=int, default=[0], help="the filter's random seeds")
+    parser.add_argument("--filter-seeds", nargs="+", type=arguments.SEED, default=[0], help="the filter's random seeds")
     parser.add_argument("--out", default="slam_benchmark")
-    parser.add_argument("--jobs", type=int, default=1)
-    parser.add_argument("--threads", type=int, default=None, help="kernel threads per run (default: one per core)")
-    parser.add_argument("--flaser-fov", type=float, default=180.0,
+    parser.add_argument("--jobs", type=arguments.integer(1), default=1)
+    parser.add_argument("--threads", type=arguments.integer(1), default=None,
+                        help="kernel threads per run (default: one per core)")
+    parser.add_argument("--flaser-fov", type=arguments.number(0.0, 360.0, "degrees"), default=180.0,
                         help="field of view of the FLASER lines, degrees (the first beam at -fov/2, the last at +fov/2)")
     args = parser.parse_args()
     config = rbpf_config(parser, args.slam, None if args.preset == "none" else args.preset,

@@ -17,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym
+from emmi_gym.inputs import arguments
 from emmi_gym.policies import make_policy
 
 gym.register_envs(emmi_gym)
@@ -26,7 +27,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env-id", default="emmi_gym/Explore-v0")
     parser.add_argument("--policy", default="random", help="frontier, random, active_loop_closing, ...")
-    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--episodes", type=arguments.EPISODES, default=100)
     args = parser.parse_args()
     policy = make_policy(args.policy)
     env = gym.make(args.env_id)

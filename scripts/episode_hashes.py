@@ -86,8 +86,8 @@ def replay_hash() -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     arguments.add_seed_range(parser, 2)
-    parser.add_argument("--decisions", type=int, default=12, help="steps per waypoint episode")
-    parser.add_argument("--velocity-steps", type=int, default=400, help="steps per velocity episode")
+    parser.add_argument("--decisions", type=arguments.integer(1), default=12, help="steps per waypoint episode")
+    parser.add_argument("--velocity-steps", type=arguments.integer(1), default=400, help="steps per velocity episode")
     args = parser.parse_args()
     gym.register_envs(emmi_gym)
     ids = sorted(i for i in gym.registry if i.startswith("emmi_gym/"))

@@ -23,6 +23,7 @@ import yaml
 from emmi_gym import pretrained
 from emmi_gym.experiments.comparison import markdown_table, policy_means
 from emmi_gym.experiments.report import read_csv
+from emmi_gym.inputs import arguments
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.training.records import TrainingRecordError
 from emmi_gym.training.run_record import TRAINING_RECORD, machine_description
@@ -35,13 +36,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", type=Path, help="run folder of 'emmi-gym train' (model.zip, config.yaml)")
     parser.add_argument("name", help="the agent's name in the package")
-    parser.add_argument("--episodes", type=int, default=30)
-    parser.add_argument("--seed", type=int, default=EVALUATION_SEED)
+    parser.add_argument("--episodes", type=arguments.EPISODES, default=30)
+    parser.add_argument("--seed", type=arguments.SEED, default=EVALUATION_SEED)
     parser.add_argument("--world", default=None, help="world, map set, folder or glob (default: the run's own)")
     parser.add_argument("--baselines", nargs="*", default=["frontier", "active_loop_closing"])
-    parser.add_argument("--training-seconds", type=float, default=None,
+    parser.add_argument("--training-seconds", type=arguments.number(0.0, unit="s"), default=None,
                         help=f"wall time of training, for a run folder without {TRAINING_RECORD}")
-    parser.add_argument("--workers", type=int, default=None)
+    arguments.add_workers(parser)
     parser.add_argument("--episodes-csv", nargs="+", type=Path, default=None,
                         help="episodes.csv files of 'emmi-gym evaluate --out' with these options, instead of evaluating")
     parser.add_argument("--evaluated-on", default=None, help="the machine the --episodes-csv files were made on")

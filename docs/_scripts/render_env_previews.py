@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import emmi_gym  # noqa: E402
 from emmi_gym.env.registration import ENV_IDS  # noqa: E402
+from emmi_gym.inputs import arguments
 from emmi_gym.policies import make_policy  # noqa: E402
 
 gym.register_envs(emmi_gym)
@@ -51,9 +52,9 @@ def preview(name: str, seed: int, decisions: int, steps: int) -> np.ndarray:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="docs/envs")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--decisions", type=int, default=12)
-    parser.add_argument("--steps", type=int, default=600)
+    parser.add_argument("--seed", type=arguments.SEED, default=0)
+    parser.add_argument("--decisions", type=arguments.integer(1), default=12)
+    parser.add_argument("--steps", type=arguments.integer(1), default=600)
     parser.add_argument("--ids", nargs="*", default=list(ENV_IDS))
     args = parser.parse_args()
     for name in args.ids:

@@ -68,7 +68,8 @@ CURVE_FILE, EPISODES_FILE = "checkpoint_scores.csv", "checkpoint_episodes.csv"
 
 def score_runs(args: argparse.Namespace) -> int:
     """Score every run of ``args`` (the options of ``emmi-gym score-checkpoints``) and write, in each run
-    folder, :data:`CURVE_FILE` (a row per checkpoint) and :data:`EPISODES_FILE` (every episode), each renamed into place once whole.
+    folder, :data:`CURVE_FILE` (a row per checkpoint) and :data:`EPISODES_FILE` (every episode), each renamed
+    into place once whole.
     Every folder is checked first (there, with checkpoints, writable), before any episode is played."""
     for run in args.runs:
         whole_checkpoints(run)
