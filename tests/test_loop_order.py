@@ -24,7 +24,7 @@ from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.experiments.sweep import SWEEP_MEASURES, SweepFileError, ab_settings, read_sweep
 from emmi_gym.inputs.validation import OptionError
 from emmi_gym.policies import make_policy
-from emmi_gym.training.train import make_env
+from emmi_gym.training.train import make_agent_env
 from emmi_gym.world import rasterise
 from emmi_gym.world.loop_worlds import LoopWorldConfig, generate_loop_world
 from emmi_gym.world.presets import odometry_config
@@ -83,7 +83,7 @@ def test_loop_order_passes_the_checker_and_replays_bit_for_bit():
     check_env(env.unwrapped, skip_render_check=True)
 
     def episode(seed):
-        env = make_env("emmi_gym/LoopOrder-v0", dict(TINY, max_decisions=3))
+        env = make_agent_env("emmi_gym/LoopOrder-v0", dict(TINY, max_decisions=3))
         digest = hashlib.sha256()
         obs, info = env.reset(seed=seed)
         names = (env.unwrapped.world.name, env.unwrapped.world.description)
