@@ -1,6 +1,8 @@
-"""Where the particles stand at the decision point of a loop, against the truth: what closing the loop can choose from.
+"""Where the particles stand at the decision point of a loop, against the truth: what closing the loop can
+choose from.
 
-    python scripts/loop_cloud.py [--env-id emmi_gym/LoopOrder-v0] [--seeds 10] [--first-seed 0] [--odometry poor]
+    python benchmarks/loop_cloud.py [--env-id emmi_gym/LoopOrder-v0] [--seeds 10] [--first-seed 0]
+                                    [--odometry poor]
 
 For each seed it resets the env (which drives the loop up to the decision point) and prints, averaged over
 the seeds: the particles' spread (m, the norm of their x and y deviations), how far their mean lies from the
@@ -19,6 +21,7 @@ import numpy as np
 
 import emmi_gym  # noqa: F401
 from emmi_gym.experiments.ab import loop_ate
+from emmi_gym.inputs import arguments
 
 
 def cloud(env, seed: int) -> tuple[float, ...]:
@@ -36,13 +39,12 @@ def cloud(env, seed: int) -> tuple[float, ...]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env-id", default="emmi_gym/LoopOrder-v0")
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--first-seed", type=int, default=0)
+    arguments.add_seed_range(parser, 10)
     parser.add_argument("--odometry", default=None, help="an odometry preset (default: the env's)")
     args = parser.parse_args()
     options = {"update_records": True} | ({"odometry_noise": args.odometry} if args.odometry else {})
     env = gym.make(args.env_id, **options)
-    rows = np.array([cloud(env, seed) for seed in range(args.first_seed, args.first_seed + args.seeds)])
+    rows = np.array([cloud(env, seed) for seed in arguments.seed_range(args)])
     spread, offset, nearest, best, median, of_nearest, correlation = rows.mean(axis=0)
     print(f"{args.env_id}, seeds {args.first_seed}-{args.first_seed + args.seeds - 1}, odometry "
           f"{args.odometry or 'as registered'} (means over seeds):")
