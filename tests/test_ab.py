@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from emmi_gym import cli
 from emmi_gym.cli import main
+from emmi_gym.commands import ab as ab_command
 from emmi_gym.experiments import ABSettings, run_arm
 from emmi_gym.experiments.intervals import mean_interval
 from emmi_gym.experiments.report import SUMMARY_COLUMNS
@@ -130,7 +130,7 @@ def test_demo_writes_the_figures_and_prints_the_summary(tmp_path, capsys):
 def test_bad_input_is_a_clear_error(argv, message, capsys):
     from emmi_gym.slam.config import MAX_PARTICLES
 
-    assert cli.MAX_PARTICLES == MAX_PARTICLES  # the bound the filter's configuration keeps
+    assert ab_command.MAX_PARTICLES == MAX_PARTICLES  # the bound the filter's configuration keeps
     with pytest.raises(SystemExit) as exit_:
         main(argv + ["--out", "unused"])
     assert exit_.value.code == 2
