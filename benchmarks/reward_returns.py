@@ -7,7 +7,7 @@ and final map quality, and the policy the reward prefers (emmi_gym/experiments/r
 
     python benchmarks/reward_returns.py --worlds dungeon_maps/train --plans 12 \\
         --policies frontier active_loop_closing random --out results/alignment_train
-    python benchmarks/reward_returns.py --env emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 4 \\
+    python benchmarks/reward_returns.py --env-id emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 4 \\
         --policies close_loop_first explore_first frontier --discounts none 0.95 0.9@100
 
 ``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
@@ -34,7 +34,7 @@ from emmi_gym.policies import POLICY_NAMES
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env", default="emmi_gym/ExplorePlans-v0")
+    parser.add_argument("--env-id", default="emmi_gym/ExplorePlans-v0")
     parser.add_argument("--options", default="{}", help="JSON of further gym.make options")
     parser.add_argument("--worlds", nargs="+", default=["dungeon_maps/train"])
     parser.add_argument("--plans", type=arguments.integer(1), default=12, help="maps taken from each map set")
@@ -48,21 +48,21 @@ def main() -> None:
     arguments.add_workers(parser)
     parser.add_argument("--out", type=Path, default=None, help="write summary.md and episodes.json here")
     args = parser.parse_args()
-    if args.env not in gym.registry:
-        parser.error(f"--env: no environment {args.env!r} is registered")
+    if args.env_id not in gym.registry:
+        parser.error(f"--env-id: no environment {args.env_id!r} is registered")
     try:
         discounts = [Discount.parse(text) for text in args.discounts]
     except ValueError as error:
         parser.error(f"--discounts: {error}")
-    settings = ComparisonSettings(args.env, json_object(parser, "--options", args.options))
-    checked(parser, build, EnvConfig, {**gym.spec(args.env).kwargs, **settings.env_options}, "", source="--options")
+    settings = ComparisonSettings(args.env_id, json_object(parser, "--options", args.options))
+    checked(parser, build, EnvConfig, {**gym.spec(args.env_id).kwargs, **settings.env_options}, "", source="--options")
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
 
     episodes = [(w, s) for w in worlds_of(args.worlds, args.plans) for s in arguments.seed_range(args)]
     rows = compare_on(episodes, args.policies, settings, workers=args.workers, keep_steps=True)
     results = alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES))
-    title = (f"Reward alignment on {args.env}{f' {settings.env_options}' if settings.env_options else ''}: "
+    title = (f"Reward alignment on {args.env_id}{f' {settings.env_options}' if settings.env_options else ''}: "
              f"{len(episodes)} episodes ({', '.join(args.worlds)}; seeds from {args.first_seed}) of "
              f"{', '.join(args.policies)}")
     table = markdown(results, policy_front(rows), title)

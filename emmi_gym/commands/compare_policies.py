@@ -20,7 +20,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--plans", type=arguments.integer(1, arguments.MAX_EPISODES), default=50,
                         help="maps taken from each map set (default 50)")
     arguments.add_seed_range(parser, seeds=1)
-    parser.add_argument("--env", default="emmi_gym/ExplorePlans-v0", help="the environment id")
+    parser.add_argument("--env-id", default="emmi_gym/ExplorePlans-v0",
+                        help="the environment id (default emmi_gym/ExplorePlans-v0)")
     parser.add_argument("--options", default="{}", help="JSON object of further gym.make options")
     parser.add_argument("--policies", nargs=2, default=["frontier", "active_loop_closing"],
                         metavar=("BASELINE", "POLICY"), help="default: frontier active_loop_closing")
@@ -52,21 +53,21 @@ def run(args: argparse.Namespace) -> int:
     if not isinstance(options, dict):
         raise ValueError(f"--options: expected a JSON object of options ({{\"name\": value, ...}}), got "
                          f"{args.options[:80]!r}")
-    if args.env not in gym.registry:
-        raise ValueError(f"--env: no environment {args.env!r} is registered (emmi-gym's: "
+    if args.env_id not in gym.registry:
+        raise ValueError(f"--env-id: no environment {args.env_id!r} is registered (emmi-gym's: "
                          f"{', '.join(f'emmi_gym/{name}' for name in ENV_IDS)})")
     unknown = sorted(set(args.policies) - set(POLICY_NAMES))
     if unknown:
         raise ValueError(f"--policies: unknown {unknown}; choose from {list(POLICY_NAMES)}")
-    build(EnvConfig, {**gym.spec(args.env).kwargs, **options}, "", source="--options")
+    build(EnvConfig, {**gym.spec(args.env_id).kwargs, **options}, "", source="--options")
     out = output_folder(args.out)
-    settings = ComparisonSettings(args.env, options)
+    settings = ComparisonSettings(args.env_id, options)
     worlds = worlds_of(args.worlds, args.plans)
     seeds = list(arguments.seed_range(args))
     baseline, policy = args.policies
     rows = compare(worlds, seeds, [baseline, policy], settings, workers=args.workers, progress=not args.quiet)
     write_csv(out / "episodes.csv", rows)
-    title = f"{args.env}{f' {options}' if options else ''} on {len(worlds)} worlds x {len(seeds)} seeds"
+    title = f"{args.env_id}{f' {options}' if options else ''} on {len(worlds)} worlds x {len(seeds)} seeds"
     table = markdown_table(rows, policy, baseline, title)
     (out / "summary.md").write_text(table + "\n")
     print(table)
