@@ -59,7 +59,7 @@ from emmi_gym.inputs import arguments
 from emmi_gym.training import callbacks
 from emmi_gym.training.config import algorithm_class, load_agent_config
 from emmi_gym.training.rollout_workers import RolloutWorker, RolloutWorkers, acting_of, is_masked
-from emmi_gym.training.train import make_env, model_of, set_torch_threads, train, training_torch_threads
+from emmi_gym.training.train import make_agent_env, model_of, set_torch_threads, train, training_torch_threads
 
 SPENT: dict = defaultdict(float)
 #: Worker counts the efficiency is predicted for (besides the run's own).
@@ -69,7 +69,7 @@ PREDICTED_WORKERS = (16, 64)
 def single_thread_decision_seconds(config, decisions: int) -> np.ndarray:
     """The wall time of each decision of one rollout worker playing alone (see the docstring): the first
     ``decisions`` of every env of the run, one env after another."""
-    env_fn = partial(make_env, config.env_id, config.env_kwargs)
+    env_fn = partial(make_agent_env, config.env_id, config.env_kwargs)
     model = model_of(config, DummyVecEnv([env_fn]))  # the initial weights of the run's model (same seed)
     weights, acting = model.policy.state_dict(), acting_of(model, is_masked(model))
     times = []

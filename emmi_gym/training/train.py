@@ -118,7 +118,7 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, e
     if _rollout_workers(n_envs, vec_env):
         from .rollout_workers import RolloutWorkers
 
-        return RolloutWorkers(partial(make_env, config.env_id, kwargs, vec_worker=True), n_envs, seed,
+        return RolloutWorkers(partial(make_agent_env, config.env_id, kwargs, vec_worker=True), n_envs, seed,
                               on_ray=vec_env == "ray_workers", ray_address=ray_address)
     if vec_env == "ray":
         from .ray_vec_env import RayVecEnv
