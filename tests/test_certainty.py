@@ -38,7 +38,7 @@ def ref_mi(p, tol=1e-3):
 
 
 def ref_em(p, w):
-    return sum(wi * pi.astype(np.float64) for wi, pi in zip(w, p))
+    return sum(wi * pi.astype(np.float64) for wi, pi in zip(w, p, strict=False))
 
 
 def ref_pose_entropy(poses, w):
@@ -46,7 +46,7 @@ def ref_pose_entropy(poses, w):
     mx, my = (w * poses[:, 0]).sum(), (w * poses[:, 1]).sum()
     mt = math.atan2((w * np.sin(poses[:, 2])).sum(), (w * np.cos(poses[:, 2])).sum())
     cov = np.zeros((3, 3))
-    for wi, (x, y, t) in zip(w, poses):
+    for wi, (x, y, t) in zip(w, poses, strict=False):
         dt = (t - mt + math.pi) % (2 * math.pi) - math.pi
         d = np.array([x - mx, y - my, dt])
         cov += wi * np.outer(d, d)
@@ -118,7 +118,7 @@ def test_observed_tolerance_is_in_nats(p, tol):
 def test_weighted_map_entropy_matches_reference(case):
     grids, weights = case
     w = ref_weights(weights)
-    expected = sum(wi * sum(ref_h2(v) for v in g.ravel()) for wi, g in zip(w, grids))
+    expected = sum(wi * sum(ref_h2(v) for v in g.ravel()) for wi, g in zip(w, grids, strict=False))
     assert C.weighted_map_entropy(grids, weights) == pytest.approx(expected, rel=1e-9, abs=1e-9)
 
 
@@ -141,7 +141,7 @@ def test_path_and_joint_entropy_match_reference(m, t, seed):
     wn = ref_weights(w)
     h_path = np.mean([ref_pose_entropy(paths[:, k], wn) for k in range(t)])
     assert C.path_entropy(paths, w) == pytest.approx(h_path, abs=1e-6)
-    h_maps = sum(wi * sum(ref_h2(v) for v in g.ravel()) for wi, g in zip(wn, grids)) * math.log(2)
+    h_maps = sum(wi * sum(ref_h2(v) for v in g.ravel()) for wi, g in zip(wn, grids, strict=False)) * math.log(2)
     assert C.joint_entropy(paths, grids, w) == pytest.approx(h_path + h_maps, abs=1e-6)
 
 

@@ -86,7 +86,7 @@ def test_update_records_list_every_update_and_change_nothing_else():
         runs.append((steps, env.unwrapped.slam.step, env.unwrapped.true_path))
     (lazy, lazy_updates, lazy_path), (eager, eager_updates, eager_path) = runs
     assert lazy_updates == eager_updates and np.array_equal(lazy_path, eager_path)
-    for a, b in zip(lazy, eager):
+    for a, b in zip(lazy, eager, strict=False):
         assert {k: a[k] for k in ("emmi", "pose_entropy", "joint_entropy", "neff", "ate")} == \
             {k: b[k] for k in ("emmi", "pose_entropy", "joint_entropy", "neff", "ate")}
         assert b["rbpf_updates"][-1]["emmi"] == b["emmi"]
@@ -273,7 +273,7 @@ def test_decision_point_offers_the_papers_choice():
     assert not rows[~mask].any()
     xmin, ymin, xmax, ymax = world.bounds
     side = max(xmax - xmin, ymax - ymin)
-    for row, t in zip(rows, targets):
+    for row, t in zip(rows, targets, strict=False):
         if t is None:
             continue
         np.testing.assert_allclose(row[2:5] * [side, side, 2 * side],

@@ -29,7 +29,6 @@ from emmi_gym.world import rasterise
 from emmi_gym.world.loop_worlds import LoopWorldConfig, generate_loop_world
 from emmi_gym.world.presets import odometry_config
 
-
 TINY = dict(particles=3, max_decisions=8)
 
 

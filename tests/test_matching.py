@@ -30,7 +30,7 @@ def test_matcher_recovers_a_pose_displaced_by_40_cm_and_4_degrees(scans, resolut
     config = RBPFConfig(resolution=resolution)
     geometry = GridGeometry.covering(*world.bounds, resolution, margin=2.0)
     maps = ParticleMaps(geometry, 1, CellCodes.from_config(config), config.coarse_block())
-    for pose, r in zip(poses, ranges):
+    for pose, r in zip(poses, ranges, strict=False):
         maps.insert(pose[None], r, laser.config.angles, laser.config.max_range, 0.0)
     start = TRUE_POSE + np.array([offset[0], offset[1], math.radians(offset[2])])
     settings = MT.match_settings(config, geometry.origin_x, geometry.origin_y, resolution, maps.block)

@@ -29,7 +29,7 @@ def oracle_from(poses, scans, angles, geometry) -> OracleMap:
     rbpf = RBPF(RBPFConfig(particles=1), max_range=LaserConfig().max_range, geometry=geometry)
     rbpf.reset(poses[0], np.random.default_rng(0))
     oracle = OracleMap(rbpf)
-    for pose, scan in zip(poses, scans):
+    for pose, scan in zip(poses, scans, strict=False):
         oracle.insert(pose, scan, angles)
     return oracle
 

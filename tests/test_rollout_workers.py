@@ -166,7 +166,6 @@ def test_a_worker_that_stops_is_an_error_naming_it_not_a_hang():
 
 def test_training_with_workers_stops_on_ctrl_c_resumes_and_starts_from_another_model(tmp_path, monkeypatch):
     from sb3_contrib import MaskablePPO
-
     from test_training import interrupt_training_at
 
     data = agent(MASKED, total_timesteps=36, checkpoint_freq=12)

@@ -63,7 +63,7 @@ def test_a_jamb_just_inside_the_margin_is_passed_not_stared_at(target):
     bearings = np.radians([a for _, a in JAMB_SCAN])
     echoes = np.column_stack([np.cos(bearings), np.sin(bearings)]) * np.array([r for r, _ in JAMB_SCAN])[:, None]
     walls = [echoes[0]]  # the echoes joined where they are closer than 0.25 m: the walls they lie on
-    for p, q in zip(echoes[:-1], echoes[1:]):
+    for p, q in zip(echoes[:-1], echoes[1:], strict=False):
         walls += [p + t * (q - p) for t in np.linspace(0.0, 1.0, 10)[1:]] if np.hypot(*(q - p)) < 0.25 else [q]
     walls = np.array(walls)
     x = y = theta = 0.0

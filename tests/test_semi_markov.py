@@ -24,7 +24,7 @@ GAMMA, UNIT = 0.9, 100
 def filled(cls, rewards, values, starts, gae_lambda=0.95):
     obs_space, action_space = spaces.Box(-1, 1, (2,)), spaces.Discrete(3)
     buffer = cls(len(rewards), obs_space, action_space, gamma=GAMMA, gae_lambda=gae_lambda, n_envs=1)
-    for r, v, s in zip(rewards, values, starts):
+    for r, v, s in zip(rewards, values, starts, strict=False):
         buffer.add(np.zeros((1, 2)), np.zeros((1, 1)), np.array([r]), np.array([s]), th.tensor([v]), th.zeros(1))
     return buffer
 

@@ -29,7 +29,7 @@ def loop_run(seed, config=RBPFConfig(), laser=LaserConfig(), odometry=OdometryNo
     slam = RBPF(config, max_range=sim.laser.config.max_range, geometry=geometry)
     slam.reset(rec.odometry_poses[0], np.random.default_rng(1000 + seed))
     rows, steps = [], []
-    for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans)):
+    for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans, strict=False)):
         metrics = slam.process(pose, ranges, sim.laser.config.angles, rec.times[k])
         if metrics is not None:
             rows.append(metrics)
@@ -205,7 +205,7 @@ def _scans_in_office(n_scans, seed=0):
 
 def _mi_of(poses, scans, angles, geometry, config=RBPFConfig()):
     maps = ParticleMaps(geometry, 1, CellCodes.from_config(config))
-    for pose, ranges in zip(poses, scans):
+    for pose, ranges in zip(poses, scans, strict=False):
         maps.insert(pose[None], ranges, angles, 8.0, config.max_range_free)
     return certainty.mean_information(maps.probabilities(0))
 
@@ -269,13 +269,13 @@ def test_fig4_mi_is_nearly_resolution_independent_while_entropy_grows():
         config = RBPFConfig(resolution=resolution)
         geometry = GridGeometry.covering(*world.bounds, resolution)
         maps = ParticleMaps(geometry, 1, CellCodes.from_config(config))
-        for pose, ranges in zip(poses, scans):
+        for pose, ranges in zip(poses, scans, strict=False):
             maps.insert(pose[None], ranges, angles, 8.0, 0.0)
         p = maps.probabilities(0)
         mi.append(certainty.mean_information(p))
         entropy.append(certainty.map_entropy(p))
     assert (max(mi) - min(mi)) / max(mi) < 0.10, mi
-    assert all(a < b for a, b in zip(entropy, entropy[1:])), entropy
+    assert all(a < b for a, b in zip(entropy, entropy[1:], strict=False)), entropy
 
 
 def test_a_far_wall_seen_at_a_slant_keeps_its_cells():

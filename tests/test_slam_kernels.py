@@ -192,7 +192,7 @@ def occupied_per_block(grid, block):
     """How many cells of each block x block block are occupied (code > 0), blocks cut at the edges."""
     h, w = grid.shape
     out = np.zeros((-(-h // block), -(-w // block)), dtype=np.int32)
-    for row, col in zip(*np.nonzero(grid > 0)):
+    for row, col in zip(*np.nonzero(grid > 0), strict=False):
         out[row // block, col // block] += 1
     return out
 
@@ -229,7 +229,7 @@ def twin_loglik(grid, hits, x, y, theta, ranges, angles, max_range, radius, sigm
     null2 = (max(null_distance, radius) / RES) ** 2
     scale = RES * RES / (2 * sigma * sigma)
     total, matched = 0.0, 0
-    for r, a in zip(ranges, angles):
+    for r, a in zip(ranges, angles, strict=False):
         if not 0 < r < max_range:
             continue
         c, s = math.cos(theta + a), math.sin(theta + a)
@@ -448,7 +448,7 @@ def test_copy_spans_cover_the_cells_row_by_row_and_the_blocks_they_reach(values,
     assert covered.size == np.unique(covered).size
     assert np.all(np.isin(spans[:, 0], cells)) and np.all(np.isin(spans[:, 1] - 1, cells))
     assert np.all(spans[:, 0] // width == (spans[:, 1] - 1) // width)
-    for (a0, b0, *_), (a1, *_) in zip(spans[:-1], spans[1:]):
+    for (a0, b0, *_), (a1, *_) in zip(spans[:-1], spans[1:], strict=False):
         assert a1 // width != a0 // width or a1 - b0 + 1 > max_gap
     for s, inside in enumerate(spans[:, :2]):
         assert np.all(np.diff(cells[(cells >= inside[0]) & (cells < inside[1])]) <= max_gap)

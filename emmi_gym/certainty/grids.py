@@ -34,7 +34,7 @@ class ParticleGrids:
     offset: int
 
     @classmethod
-    def from_arrays(cls, grids, weights, *, logodds=False, lut=None, log_weights=False) -> "ParticleGrids":
+    def from_arrays(cls, grids, weights, *, logodds=False, lut=None, log_weights=False) -> ParticleGrids:
         g = np.asarray(grids)
         if g.ndim < 2:
             raise ValueError(f"grids must be (M, H, W) or (M, N), got shape {g.shape}")
@@ -63,7 +63,7 @@ class ParticleGrids:
             _kernels.expected_map_probabilities(self.flat, self.weights, out)
         else:  # NumPy's SIMD exp per particle, then a fused accumulate
             scratch = np.empty(self.flat.shape[1], dtype=self.flat.dtype)
-            for wi, row in zip(self.weights, self.flat):
+            for wi, row in zip(self.weights, self.flat, strict=False):
                 if wi == 0.0:
                     continue
                 np.negative(row, out=scratch)

@@ -96,7 +96,7 @@ def chunk_bounds(n: int, min_chunk: int = 1) -> list[tuple[int, int]]:
     way round the caller waited for the eighth, 3-4% of an update)."""
     chunks = max(1, min(_threads, n // max(1, min_chunk)))
     bounds = [n - n * (chunks - k) // chunks for k in range(chunks + 1)]
-    return list(zip(bounds[:-1], bounds[1:]))
+    return list(zip(bounds[:-1], bounds[1:], strict=False))
 
 
 def run_calls(calls: list[tuple]) -> list:

@@ -257,7 +257,7 @@ def target_features(slots, loop_spreads, pose, bounds, resolution: float) -> np.
     xmin, ymin, xmax, ymax = bounds
     side = max(xmax - xmin, ymax - ymin)
     rows = np.zeros((len(slots), len(TARGET_FEATURES)), dtype=np.float32)
-    for k, (target, spread) in enumerate(zip(slots, loop_spreads)):
+    for k, (target, spread) in enumerate(zip(slots, loop_spreads, strict=False)):
         if target is None:
             continue
         revisit = target.kind == "revisit"

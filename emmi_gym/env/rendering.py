@@ -39,7 +39,7 @@ class Canvas:
                     self.image[r[ok], c[ok]] = colour
 
     def polyline(self, xy: np.ndarray, colour):
-        for (x0, y0), (x1, y1) in zip(xy[:-1], xy[1:]):
+        for (x0, y0), (x1, y1) in zip(xy[:-1], xy[1:], strict=False):
             n = max(2, int(math.hypot(x1 - x0, y1 - y0) * self.ppm * 2))
             self.points(np.linspace(x0, x1, n), np.linspace(y0, y1, n), colour)
 

@@ -202,7 +202,7 @@ def plot_pair(rows: list[dict], path) -> None:
          f"ATE {r['ate']:.2f} m", r["expected_map"], r["true_path"],
          [s["target_xy"] for s in r.get("steps", []) if s["target_kind"] == "revisit"]) for r in rows]
     fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.6))
-    for ax, (title, grid, path_xy, revisits) in zip(axes, panels):
+    for ax, (title, grid, path_xy, revisits) in zip(axes, panels, strict=False):
         ax.imshow(1.0 - grid, cmap="gray", origin="lower", extent=rows[0]["extent"], vmin=0, vmax=1)
         if path_xy is not None:
             ax.plot(path_xy[:, 0], path_xy[:, 1], color="tab:red", lw=0.6)
@@ -231,7 +231,7 @@ def plot_front(rows: list[dict], path, qualities=("oracle_accuracy", "ate"), tim
 
     policies = list(dict.fromkeys(r["policy"] for r in rows))
     fig, axes = plt.subplots(1, len(qualities), figsize=(5.2 * len(qualities), 4.2))
-    for ax, quality in zip(np.atleast_1d(axes), qualities):
+    for ax, quality in zip(np.atleast_1d(axes), qualities, strict=False):
         for policy in policies:
             mine = [r for r in rows if r["policy"] == policy]
             tx, tlo, thi, _ = measure_interval([r[time] for r in mine], time)

@@ -260,7 +260,7 @@ def write_outputs(result: ReplayResult, out_dir) -> dict[str, Path]:
               ("pose_entropy", "pose entropy (nats)"), ("joint_entropy", "joint entropy (nats)"),
               ("neff", "Neff")]
     fig, axes = plt.subplots(len(panels), 1, figsize=(8, 2.0 * len(panels)), sharex=True)
-    for ax, (key, label) in zip(axes, panels):
+    for ax, (key, label) in zip(axes, panels, strict=False):
         ax.plot(steps, [getattr(r, key) for r in result.rows], lw=1.2)
         ax.set_ylabel(label, fontsize=8)
         ax.grid(alpha=0.3)

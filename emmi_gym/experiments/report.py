@@ -174,9 +174,9 @@ def _aligned(runs: list[ABRun], measure: str, decision: int) -> np.ndarray:
     shifted = [np.array([r[measure] for r in run.rows], dtype=float)[max(run.decision - decision, 0):]
                for run in runs]
     pads = [max(decision - run.decision, 0) for run in runs]
-    length = max(p + s.size for p, s in zip(pads, shifted))
+    length = max(p + s.size for p, s in zip(pads, shifted, strict=False))
     out = np.full((len(runs), length), np.nan)
-    for k, (pad, series) in enumerate(zip(pads, shifted)):
+    for k, (pad, series) in enumerate(zip(pads, shifted, strict=False)):
         out[k, pad:pad + series.size] = series
     return out
 
@@ -193,7 +193,7 @@ def plot_metrics(runs: list[ABRun], path: Path) -> None:
     decision = int(round(np.mean([run.decision for run in runs])))
     closures = [h for h in horizons(runs).values() if h is not None]
     fig, axes = plt.subplots(len(FIGURE_MEASURES), 1, figsize=(8, 8.5), sharex=True)
-    for ax, (measure, label) in zip(axes, FIGURE_MEASURES):
+    for ax, (measure, label) in zip(axes, FIGURE_MEASURES, strict=False):
         for arm, style, colour in (("A", "-", "tab:blue"), ("B", "--", "tab:red")):
             values = _aligned([run for run in runs if run.arm == arm], measure, decision)
             present = np.isfinite(values)
@@ -240,7 +240,7 @@ def plot_maps(runs: list[ABRun], seed: int, path: Path) -> None:
               ("(e) after B: new area entered", by_arm["B"], "first_goal")]
     panels = [(title, run, event) for title, run, event in panels if event in run.maps]
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.4))
-    for ax, (title, run, event) in zip(np.atleast_1d(axes), panels):
+    for ax, (title, run, event) in zip(np.atleast_1d(axes), panels, strict=False):
         ax.imshow(run.maps[event], cmap="gray_r", vmin=0, vmax=1, origin="lower", extent=run.extent,
                   interpolation="nearest")
         for ax_, ay, bx, by, _ in run.walls:

@@ -166,7 +166,7 @@ def read_sweep(path) -> Sweep:
     for key in config.figure or ():
         if key not in config.grid:
             raise SweepFileError(source, "figure", f"grid keys (one of {list(config.grid)})", key)
-    settings = [dict(config.options, **dict(zip(config.grid, values)))
+    settings = [dict(config.options, **dict(zip(config.grid, values, strict=False)))
                 for values in itertools.product(*config.grid.values())]
     for setting in settings:
         try:
@@ -233,7 +233,7 @@ def plot_sweep(summary: list[dict], keys, path: Path) -> None:
         rows = [r for r in summary if line_key is None or str(r.get(line_key)) == value]
         pos = np.array([xs.index(str(r.get(x_key, ""))) for r in rows]) + (k - (len(lines) - 1) / 2) * width
         mean = np.array([r["ate_diff"] for r in rows])
-        err = np.array([[m - r["ate_low"], r["ate_high"] - m] for m, r in zip(mean, rows)]).T
+        err = np.array([[m - r["ate_low"], r["ate_high"] - m] for m, r in zip(mean, rows, strict=False)]).T
         ax.errorbar(pos, mean, yerr=err, fmt="o-", capsize=3, label=f"{line_key}={value}" if line_key else None)
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xticks(range(len(xs)), xs)

@@ -31,7 +31,7 @@ class GridGeometry:
 
     @classmethod
     def covering(cls, xmin: float, ymin: float, xmax: float, ymax: float, resolution: float,
-                 margin: float = 0.0) -> "GridGeometry":
+                 margin: float = 0.0) -> GridGeometry:
         """The smallest grid of ``resolution`` cells covering the box grown by ``margin`` (the box may be
         flat, as a path along an axis, if the margin gives it an area)."""
         if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax, margin)):

@@ -107,7 +107,7 @@ def revisit_targets(path: np.ndarray, costs: CostMap) -> list[Target]:
     lengths = costs.route_lengths(path[older, :2])
     candidates = [Target("revisit", float(path[k, 0]), float(path[k, 1]), float(cost), behind[k] / max(length, 0.5),
                       int(k))
-                  for k, cost, length in zip(older, travel, lengths) if behind[k] >= LOOP_RATIO * length]
+                  for k, cost, length in zip(older, travel, lengths, strict=False) if behind[k] >= LOOP_RATIO * length]
     candidates.sort(key=lambda t: (-t.gain, t.travel_cost))
     chosen: list[Target] = []
     for t in candidates:

@@ -4,8 +4,16 @@ and the paper's two goal sequences (A: close the loop first, B: explore first).
 ``make_policy(name)`` builds one by name; see :mod:`emmi_gym.policies.baselines`.
 """
 
-from .baselines import (GOAL_RADIUS, POLICY_NAMES, TARGET_SNAP, ActiveLoopClosingPolicy, FrontierPolicy,
-                        GoalSequencePolicy, RandomPolicy, make_policy)
+from .baselines import (
+                        GOAL_RADIUS,
+                        POLICY_NAMES,
+                        TARGET_SNAP,
+                        ActiveLoopClosingPolicy,
+                        FrontierPolicy,
+                        GoalSequencePolicy,
+                        RandomPolicy,
+                        make_policy,
+)
 
 __all__ = ["GOAL_RADIUS", "POLICY_NAMES", "TARGET_SNAP", "ActiveLoopClosingPolicy", "FrontierPolicy",
            "GoalSequencePolicy", "RandomPolicy", "make_policy"]

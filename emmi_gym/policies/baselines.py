@@ -177,7 +177,7 @@ class GoalSequencePolicy:
         while not self.done:
             field = self._distance_field(core, self.goals[self.phase])
             here = self._distance_from(core, field, pose)
-            targets = [t for t, ok in zip(core.targets, core.action_masks()) if ok and t is not None]
+            targets = [t for t, ok in zip(core.targets, core.action_masks(), strict=False) if ok and t is not None]
             nearer = any(self._distance_from(core, field, t.xy) < here for t in targets)
             if not (here <= GOAL_RADIUS or (here <= core.laser_config.max_range and not nearer)):
                 break

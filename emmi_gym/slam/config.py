@@ -148,7 +148,7 @@ class RBPFConfig:
         return max(1, int(round(self.coarse_resolution / self.resolution)))
 
     @classmethod
-    def preset(cls, name: str, **overrides) -> "RBPFConfig":
+    def preset(cls, name: str, **overrides) -> RBPFConfig:
         """A configuration from :data:`PRESETS` (GMapping ships such files per sensor), with ``overrides``."""
         if name not in PRESETS:
             raise ValueError(f"unknown RBPF preset {name!r}; the presets are {sorted(PRESETS)}")

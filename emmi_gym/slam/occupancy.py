@@ -184,8 +184,8 @@ class ParticleMaps:
         results = run_calls([(_kernels.insert_scans, start, stop, self.codes, self.hits, self.ever_hit, self.counts,
                               self.coarse, self.block, poses, *rays, c.occupied, c.free, c.clamp, g.origin_x,
                               g.origin_y, g.resolution, part.stamp, part.serial, part.touched)
-                             for (start, stop), part in zip(chunks, scratch)])
-        for part, (serial, n_touched) in zip(scratch, results):
+                             for (start, stop), part in zip(chunks, scratch, strict=False)])
+        for part, (serial, n_touched) in zip(scratch, results, strict=False):
             part.serial, part.n_touched = serial, n_touched
         touched = scratch[0].touched
         for part in scratch[1:]:  # the cells other chunks touched that the first did not
@@ -263,7 +263,7 @@ class ParticleMaps:
                            for start, stop in chunks])
         clock.lap("table")
         cells = _kernels.sorted_cells(np.concatenate([candidates[start:start + n]
-                                                      for (start, _), n in zip(chunks, found)]))
+                                                      for (start, _), n in zip(chunks, found, strict=False)]))
         agreement = np.empty(cells.size, dtype=np.int16)
         run_in_chunks(_kernels.agreement_of_hits, cells.size, *self._flat_grids(), _flat(self.ever_hit),
                       np.unique(parents), cells, agreement, min_chunk=MIN_CELLS_PER_THREAD)

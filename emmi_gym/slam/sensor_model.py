@@ -25,7 +25,7 @@ class CellCodes:
     probability: np.ndarray   # (256,) p(occupied) of code k at index k + 128
 
     @classmethod
-    def from_config(cls, config: RBPFConfig) -> "CellCodes":
+    def from_config(cls, config: RBPFConfig) -> CellCodes:
         step = config.logodds_step
         occupied = max(1, round(config.logodds_occupied / step))
         free = min(-1, round(config.logodds_free / step))

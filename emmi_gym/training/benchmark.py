@@ -254,10 +254,10 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
             continue
         length = min(len(c) for c in curves)
         steps = [c["timesteps"] for c in curves[0][:length]]
-        for ax, measure in zip(axes, measures):
+        for ax, measure in zip(axes, measures, strict=False):
             values = np.array([[row[measure] for row in c[:length]] for c in curves])
             ax.plot(steps, values.mean(axis=0), marker="o", ms=3, label=variant)
-    for ax, measure in zip(axes, measures):
+    for ax, measure in zip(axes, measures, strict=False):
         ax.set_xlabel("training timesteps")
         ax.set_title(f"held-out: {TABLE_COLUMNS.get(measure, measure)}", fontsize=9)
         ax.grid(alpha=0.3)
@@ -275,7 +275,7 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
                                        "revisit_share", LOOP_ORDER_KEY))
     fig, axes = plt.subplots(1, len(columns), figsize=(3 * len(columns), 3.4))
     names = list(table)
-    for ax, column in zip(axes, columns):
+    for ax, column in zip(axes, columns, strict=False):
         stats_ = [table[v][column] for v in names]
         means = [s[0] for s in stats_]
         errors = np.array([[s[0] - s[1] for s in stats_], [s[2] - s[0] for s in stats_]])

@@ -130,6 +130,6 @@ def format_table(rows: list[dict], columns=None) -> str:
 
     cells = [[text(row.get(c, float("nan"))) for c in columns] for row in rows]
     widths = [max(len(c), 9, *(len(line[k]) for line in cells)) for k, c in enumerate(columns)]
-    lines = [" ".join(c.rjust(w) for c, w in zip(columns, widths))]
-    lines += [" ".join(t.rjust(w) for t, w in zip(line, widths)) for line in cells]
+    lines = [" ".join(c.rjust(w) for c, w in zip(columns, widths, strict=False))]
+    lines += [" ".join(t.rjust(w) for t, w in zip(line, widths, strict=False)) for line in cells]
     return "\n".join(lines)

@@ -30,7 +30,7 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import torch as th
@@ -151,7 +151,7 @@ class RolloutWorker:
                     else np.clip(actions, action_space.low, action_space.high)
             self.obs, rewards, dones, infos = self.env.step(env_actions)
             steps.append((self.obs, actions, values.numpy(), log_probs.numpy(), masks, rewards, dones, infos))
-        new_obs, actions, values, log_probs, masks, rewards, dones, infos = zip(*steps)
+        new_obs, actions, values, log_probs, masks, rewards, dones, infos = zip(*steps, strict=False)
         return Fragment(_stack_steps(new_obs), np.stack(actions), np.stack(values), np.stack(log_probs),
                         np.stack(masks) if acting.masking else None, np.stack(rewards), np.stack(dones), list(infos))
 
@@ -311,7 +311,7 @@ def acting_of(model, masking: bool) -> Acting:
     return Acting(masking, model.use_sde, model.sde_sample_freq)
 
 
-@lru_cache(maxsize=None)
+@cache
 def algorithm_with_workers(algorithm_class):
     """``algorithm_class`` (an on-policy SB3 algorithm) collecting its rollouts from :class:`RolloutWorkers`."""
     return type(algorithm_class.__name__, (_FragmentCollection, algorithm_class),

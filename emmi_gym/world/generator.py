@@ -109,7 +109,7 @@ def _outline_segments(free: np.ndarray, x0: float, y0: float) -> list[tuple[floa
 def _runs(mask: np.ndarray):
     """(start, stop) index pairs of the runs of True in a 1-D mask."""
     d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))
+    return zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=False)
 
 
 def generate_world(seed: int | np.random.Generator, config: GeneratorConfig = GeneratorConfig()) -> WorldSpec:

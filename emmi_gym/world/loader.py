@@ -219,7 +219,7 @@ def _parse_walls(r: _Reader, walls_data, default_thickness: float) -> np.ndarray
                 r.fail(f"{path}.max", f"a corner above and right of min = [{x0}, {y0}] (positive width and height)",
                        [x1, y1])
             points = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
-        for k, (a, b) in enumerate(zip(points[:-1], points[1:])):
+        for k, (a, b) in enumerate(zip(points[:-1], points[1:], strict=False)):
             if math.hypot(b[0] - a[0], b[1] - a[1]) <= 1e-9:
                 r.fail(path, f"walls of positive length (points {k} and {k + 1} coincide)", [list(a), list(b)])
             rows.append((*a, *b, t))
@@ -260,7 +260,7 @@ def _check_start(r: _Reader, start: Place, bounds, walls: np.ndarray) -> None:
 
 def _check_route(r: _Reader, path: str, waypoints: list, bounds, walls: np.ndarray) -> None:
     """A route is driven straight from waypoint to waypoint: the robot must fit along every leg."""
-    for i, (a, b) in enumerate(zip(waypoints[:-1], waypoints[1:])):
+    for i, (a, b) in enumerate(zip(waypoints[:-1], waypoints[1:], strict=False)):
         length = math.hypot(b[0] - a[0], b[1] - a[1])
         t = np.linspace(0.0, 1.0, max(2, int(math.ceil(length / ROUTE_CHECK_STEP)) + 1))
         points = np.column_stack([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])])

@@ -62,7 +62,7 @@ def write_carmen(recording: Recording, sim: Simulator, path) -> Path:
                  f"{sim.robot_config.control_period} s\n")
         for t, true_pose, odom, (v, omega), ranges in zip(recording.times, recording.true_poses,
                                                           recording.odometry_poses, recording.commands,
-                                                          recording.scans):
+                                                          recording.scans, strict=False):
             carmen.write_odometry(fh, odom, v, omega, t)
             carmen.write_truepos(fh, true_pose, odom, t)
             carmen.write_robotlaser(fh, ranges, angles[0], laser.fov, laser.angular_resolution, laser.max_range,
