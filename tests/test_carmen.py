@@ -149,7 +149,8 @@ RAW = "RAWLASER1 0 -1.5708 3.1416 {res} {max_range} 0.01 0 3 {ranges} 0 13.0 hos
     (RAW.format(res=-0.017, max_range=8, ranges="1 1 1"), r"angular_resolution: expected a number > 0"),
     (RAW.format(res=0.017, max_range=8, ranges="1 -1 1"), r"range\[1\]: expected a number >= 0, got '-1'"),
     (f"FLASER 180 {SCAN} 0 0 0 1e999 0 0 1.0 host 1.0", r"odometry pose\[0\]: expected a finite number"),
-    ("FLASER 5 1 1 1 0 0 0 0 0 0 1.0 emmi-gym 1.0", r"num_readings is 5, but the line has 3 ranges before its two poses"),
+    ("FLASER 5 1 1 1 0 0 0 0 0 0 1.0 emmi-gym 1.0",
+     r"num_readings is 5, but the line has 3 ranges before its two poses"),
     ("FLASER 1e9 1 1", r"num_readings: expected a count \(an integer in \[0, 100000\]\)"),
 ])
 def test_bad_laser_fields_name_line_and_field(line, expected):
@@ -272,7 +273,8 @@ def test_timestamps_that_go_backwards_or_never_change_are_reported_with_their_li
 
 
 @pytest.mark.parametrize("line, expected", [
-    (flaser(1.0, 2.0, "\u0661.\u0665"), r"x\.log:2: FLASER: the character U\+0661 \(ARABIC-INDIC DIGIT ONE\) at column"),
+    (flaser(1.0, 2.0, "\u0661.\u0665"),
+     r"x\.log:2: FLASER: the character U\+0661 \(ARABIC-INDIC DIGIT ONE\) at column"),
     (flaser(1.0, 2.0, "\uff11"), r"x\.log:2: FLASER: the character U\+FF11 \(FULLWIDTH DIGIT ONE\)"),
     (flaser(1.0, 2.0, sep="\u00a0"), r"x\.log:2: FLASER: the character U\+00A0 \(NO-BREAK SPACE\) at column 7"),
     (flaser(1.0, 2.0, "1_0"), r"x\.log:2: FLASER: odometry pose\[0\]: expected a number, got '1_0'"),

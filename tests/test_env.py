@@ -54,9 +54,9 @@ def test_spaces_and_info():
     obs, info = env.reset(seed=1)
     assert obs["map"].shape == (2, 64, 64) and obs["map"].dtype == np.uint8
     assert env.observation_space.contains(obs)
-    for key in ("emmi", "map_information", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy", "joint_entropy",
-                "neff", "resampled", "coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate",
-                "collisions", "sim_steps", "reward_components"):
+    for key in ("emmi", "map_information", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy",
+                "joint_entropy", "neff", "resampled", "coverage", "map_accuracy", "oracle_accuracy", "wall_consistency",
+                "ate", "collisions", "sim_steps", "reward_components"):
         assert key in info
     assert "rbpf_updates" not in info  # only with update_records
     before = info
@@ -211,25 +211,30 @@ def test_async_vector_env_and_sb3_subproc_spawn():
     # wrong types, never a TypeError from deep inside
     (dict(laser={"n_beams": 3.0}), r"field 'laser.n_beams': expected an integer in \[1, 10000\].*, got 3.0"),
     (dict(laser={"n_beams": float("nan")}), r"field 'laser.n_beams': .*, got nan"),
-    (dict(slam={"likelihood_sigma": 1e-300}), r"field 'slam.likelihood_sigma': expected a finite number in \[0.001, 10\]"),
+    (dict(slam={"likelihood_sigma": 1e-300}), r"field 'slam.likelihood_sigma': expected a finite number in "
+                                              r"\[0.001, 10\]"),
     (dict(world=None, generator={"spacing": float("inf")}), r"field 'generator.spacing': .*, got inf"),
     (dict(world=None, generator={"wall_thickness": "x"}), r"field 'generator.wall_thickness': .*, got 'x'"),
     (dict(egocentric="no"), r"field 'egocentric': expected true or false, got 'no'"),
-    (dict(slam={"particles": 5}), r"field 'slam.particles': expected no particles inside slam: give it as the top-level"),
+    (dict(slam={"particles": 5}), r"field 'slam.particles': expected no particles inside slam: "
+                                  r"give it as the top-level"),
     (dict(time_cost="cheap"), r"field 'time_cost': expected a finite number in \[0, 1000\], got 'cheap'"),
     # values that would give NaN or inf later
     (dict(reward_scale=float("inf")), r"field 'reward_scale': expected a finite number in \(0, 1e\+06\] or null"),
     (dict(reward_scale=1e308), r"field 'reward_scale': .*, got 1e\+308"),
-    (dict(odometry_noise={"rot_from_rot": 1e300}), r"field 'odometry_noise.rot_from_rot': expected a finite number in \[0, 1\]"),
+    (dict(odometry_noise={"rot_from_rot": 1e300}), r"field 'odometry_noise.rot_from_rot': expected a finite number in "
+                                                   r"\[0, 1\]"),
     (dict(slam={"logodds_step": 1e6}), r"field 'slam.logodds_step': expected a finite number in \[0.001, 1\]"),
     (dict(laser={"range_sigma": float("inf")}), r"field 'laser.range_sigma': .*, got inf"),
     (dict(world=None, generator={"wall_thickness": float("nan")}), r"field 'generator.wall_thickness': .*, got nan"),
     # sizes: bounded before anything is allocated
-    (dict(particles=10**9), r"field 'particles': expected an integer in \[1, 1000\] \(each particle holds a whole map\)"),
+    (dict(particles=10**9), r"field 'particles': expected an integer in \[1, 1000\] "
+                            r"\(each particle holds a whole map\)"),
     (dict(obs_size=10**6), r"field 'obs_size': expected an integer in \[36, 256\]"),
     (dict(n_frontiers=10**7), r"field 'n_frontiers': expected an integer in \[1, 64\]"),
     (dict(world=None, generator={"nx": 10**4}), r"field 'generator.nx': expected an integer in \[2, 20\]"),
-    (dict(world=None, generator={"spacing": 1e6}), r"field 'generator.spacing': expected a finite number in \[1.6, 50\] m"),
+    (dict(world=None, generator={"spacing": 1e6}), r"field 'generator.spacing': expected a finite number in "
+                                                   r"\[1.6, 50\] m"),
     (dict(laser={"n_beams": 10**8}), r"field 'laser.n_beams': expected an integer in \[1, 10000\]"),
     (dict(resolution=1e-9), r"field 'resolution': expected a finite number in \[0.01, 1\] m"),
 ])
@@ -240,7 +245,8 @@ def test_bad_options_raise_a_clear_error(options, message):
 
 def test_bad_render_mode_and_reset_option():
     # gymnasium itself warns first that 'screen' is not in metadata["render_modes"]
-    with pytest.raises(ValueError, match=r"render_mode='screen' is not valid"), pytest.warns(UserWarning, match="screen"):
+    with (pytest.raises(ValueError, match=r"render_mode='screen' is not valid"),
+          pytest.warns(UserWarning, match="screen")):
         gym.make("emmi_gym/LoopCorridor-v0", render_mode="screen")
     env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL)
     with pytest.raises(ValueError, match=r"unknown reset option\(s\) \['speed'\]"):
@@ -262,8 +268,8 @@ def test_decision_point_offers_the_papers_choice():
     # the side corridor to the new area opens west of the decision point, between y = 8 and 10,
     # and leads towards target B
     pose = env.unwrapped.estimated_pose
-    assert any(t.x < 2.5 and 7.5 <= t.y <= 10.5 and np.hypot(t.x - b.x, t.y - b.y) < np.hypot(pose[0] - b.x, pose[1] - b.y)
-               for t in frontiers)
+    assert any(t.x < 2.5 and 7.5 <= t.y <= 10.5
+               and np.hypot(t.x - b.x, t.y - b.y) < np.hypot(pose[0] - b.x, pose[1] - b.y) for t in frontiers)
     mask = env.unwrapped.action_masks()
     assert mask.tolist() == [t is not None for t in targets]
     # the observation describes every slot: the policy can tell the loop-closing target from the frontiers
@@ -415,8 +421,8 @@ def test_targets_are_offered_again_when_every_one_lies_by_a_blocked_attempt():
     for _ in range(30):
         offered = [t for t in core.targets if t is not None]
         assert offered and core.action_masks().sum() == len(offered)
-        if core.action_type.blocked and all(min(np.hypot(t.x - x, t.y - y) for x, y in core.action_type.blocked) <= BLOCKED_RADIUS
-                                 for t in offered):
+        blocked = core.action_type.blocked
+        if blocked and all(min(np.hypot(t.x - x, t.y - y) for x, y in blocked) <= BLOCKED_RADIUS for t in offered):
             break
         core.action_type.blocked.extend((t.x, t.y) for t in offered)
         core.action_type.refresh()
@@ -601,7 +607,8 @@ def test_an_undrivable_route_ends_reset_with_an_error_not_a_hang():
     world = env._worlds.fixed
     # a route the loader would refuse (it ends inside the outer wall), given to the env directly
     env._worlds.fixed = dataclasses.replace(world, routes={"to_decision": [world.start.xy, (world.start.x, -5.0)]})
-    with pytest.raises(RuntimeError, match=r"route 'to_decision' \(6\.0 m\) was not driven within 900 simulator steps; the robot is stuck at"):
+    with pytest.raises(RuntimeError, match=r"route 'to_decision' \(6\.0 m\) was not driven within 900 simulator steps; "
+                                           r"the robot is stuck at"):
         env.reset(seed=0)
 
 

@@ -55,7 +55,8 @@ def test_continuous_velocity_action_space_and_scaling():
     assert isinstance(actions, ContinuousVelocityAction)
     assert actions.space() == spaces.Box(-1.0, 1.0, (2,), dtype=np.float32) == env.action_space
     robot = env.robot_config
-    assert actions.command(np.array([0.5, -0.25], dtype=np.float32)) == (0.5 * robot.max_speed, -0.25 * robot.max_turn_rate)
+    assert (actions.command(np.array([0.5, -0.25], dtype=np.float32))
+            == (0.5 * robot.max_speed, -0.25 * robot.max_turn_rate))
     assert actions.command([3.0, -2.0]) == (robot.max_speed, -robot.max_turn_rate)  # clipped to [-1, 1]
     assert actions.n_slots == 0 and actions.targets == [] and actions.loop_spreads == []
 

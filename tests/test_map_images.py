@@ -121,7 +121,8 @@ def test_bad_images_give_clear_errors(tmp_path):
     with pytest.raises(FileNotFoundError):
         load_world(tmp_path / "absent.png")
     Image.new("L", (6000, 5000), 195).save(tmp_path / "huge.png")  # 30 M pixels in a few kB
-    with pytest.raises(WorldFileError, match=r"huge.png: expected an image of at most 25,000,000 pixels, got '6000 x 5000'"):
+    with pytest.raises(WorldFileError,
+                       match=r"huge.png: expected an image of at most 25,000,000 pixels, got '6000 x 5000'"):
         load_world(tmp_path / "huge.png")
 
 

@@ -15,7 +15,8 @@ TRUE_POSE = np.array([5.5, 4.5, 0.5])  # in a room: the scan pins x, y and headi
 
 @pytest.fixture(scope="module")
 def scans():
-    """A 180-degree, 181-beam scan of the office world (lower left room) at TRUE_POSE and two taken nearby for the map."""
+    """A 180-degree, 181-beam scan of the office world (lower left room) at TRUE_POSE and two taken nearby for the
+    map."""
     world = load_world("office")
     laser = Simulator(world, laser=LaserConfig(fov=math.pi, n_beams=181, max_range=15.0,
                                                range_sigma=0.0, drop_probability=0.0)).laser

@@ -319,7 +319,8 @@ def assert_agreement_is_exact(maps):
     assert not np.any(maps.hits[:, ~maps.ever_hit])
     same = np.all(maps.codes == maps.codes[:1], axis=0) & np.all(maps.hits == maps.hits[:1], axis=(0, 3))
     np.testing.assert_array_equal(np.sort(maps.disputed_cells), np.flatnonzero(~same))
-    np.testing.assert_array_equal(maps.disputed_codes(), maps.codes.reshape(maps.n_particles, -1)[:, maps.disputed_cells].T)
+    np.testing.assert_array_equal(maps.disputed_codes(),
+                                  maps.codes.reshape(maps.n_particles, -1)[:, maps.disputed_cells].T)
     np.testing.assert_array_equal(maps.agreed_counts, np.bincount(maps.codes[0][same].astype(np.int64) + 128,
                                                                    minlength=256))
 
@@ -357,7 +358,8 @@ def test_incremental_emmi_equals_a_full_recomputation(seed):
         whole._forget_expected_map()
         np.testing.assert_array_equal(kept, whole.expected_map(w))  # kept up to date = made whole, bit for bit
         assert not kept.flags.writeable
-        np.testing.assert_array_equal(maps.coarse, [[[int((g[r:r + 2, c:c + 2] > 0).sum()) for c in range(0, g.shape[1], 2)]
+        np.testing.assert_array_equal(maps.coarse, [[[int((g[r:r + 2, c:c + 2] > 0).sum())
+                                                      for c in range(0, g.shape[1], 2)]
                                                      for r in range(0, g.shape[0], 2)] for g in maps.codes])
     assert 0 < maps.disputed_cells.size < maps.codes[0].size
 

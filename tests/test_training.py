@@ -466,7 +466,10 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
     core = env.unwrapped
     new_area = new_area_now(core)
     world = core.world
-    line = lambda *points: np.concatenate([np.linspace(a, b, 50) for a, b in zip(points[:-1], points[1:], strict=False)])  # noqa: E731
+
+    def line(*points):
+        return np.concatenate([np.linspace(a, b, 50) for a, b in zip(points[:-1], points[1:], strict=True)])
+
     decision, start, b = world.place("decision").xy, world.place("target_a").xy, world.place("target_b").xy
     assert closed_loop_first(line(decision, (1, 1), start, (1, 1), (1, 9), (-8, 9)), world, core.geometry, new_area)
     assert not closed_loop_first(line(decision, (1, 9), (-8, 9), (-8, 1), b), world, core.geometry, new_area)

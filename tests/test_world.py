@@ -160,7 +160,8 @@ def test_unsafe_yaml_tags_are_refused(tmp_path):
 
 
 _junk = st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=True), st.text(max_size=3),
-                  st.lists(st.integers(-3, 3), max_size=3), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
+                  st.lists(st.integers(-3, 3), max_size=3),
+                  st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
 
 
 def _leaf_paths(obj, prefix=()):

@@ -93,7 +93,8 @@ def weighted_map_entropy(grids, weights, *, logodds: bool = False, lut=None, log
     return float(np.dot(pg.weights, pg.entropies_bits()))
 
 
-def joint_entropy_of_parts(path_entropy_nats: float, map_entropies_bits, weights, *, log_weights: bool = False) -> float:
+def joint_entropy_of_parts(path_entropy_nats: float, map_entropies_bits, weights, *,
+                           log_weights: bool = False) -> float:
     """Eq. (12) from its parts: the path entropy (nats) plus ``sum_i w_i H(m_i)`` (given in bits), in nats."""
     w = normalize_weights(weights, log=log_weights)
     h = np.asarray(map_entropies_bits, dtype=np.float64)

@@ -97,8 +97,9 @@ def loop_displacement_spread(paths, weights, since: int, *, log_weights: bool = 
     The square root of the trace of the weighted covariance, over particles, of
     ``x_T - x_since`` (positions, each particle in its own path): what revisiting that
     pose and closing the loop can resolve. Each particle is sure of its own map, so the
-    spread shows in EMMI (the mean information, eq. 10, of the expected map) only once the loop is closed: the robot back in view of
-    a place that the particles put in different relative positions.
+    spread shows in EMMI (the mean information, eq. 10, of the expected map) only once the
+    loop is closed: the robot back in view of a place that the particles put in different
+    relative positions.
     """
     p = _check_poses(paths, 3, "paths")
     w = normalize_weights(weights, log=log_weights)

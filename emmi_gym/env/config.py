@@ -75,7 +75,8 @@ class EnvConfig:
     - ``laser``, ``odometry_noise``: a preset name (:mod:`emmi_gym.world.presets`:
       ``"sick_lms200"``, ``"poor"``...) or a dict of :class:`LaserConfig` /
       :class:`OdometryNoise` fields (with an optional ``preset`` they change); ``slam``: a
-      dict of :class:`RBPFConfig` fields; all checked when the config is made; ``particles`` and ``resolution`` set the filter's (not inside ``slam``).
+      dict of :class:`RBPFConfig` fields; all checked when the config is made; ``particles``
+      and ``resolution`` set the filter's (not inside ``slam``).
 
     Every field is typed and bounded (:mod:`emmi_gym.inputs.validation`); a mistake raises an
     ``OptionError`` naming the field.

@@ -234,10 +234,10 @@ def plot_front(rows: list[dict], path, qualities=("oracle_accuracy", "ate"), tim
     for ax, quality in zip(np.atleast_1d(axes), qualities, strict=False):
         for policy in policies:
             mine = [r for r in rows if r["policy"] == policy]
-            tx, tlo, thi, _ = measure_interval([r[time] for r in mine], time)
-            qy, qlo, qhi, _ = measure_interval([r[quality] for r in mine], quality)
-            ax.errorbar(tx, qy, xerr=[[tx - tlo], [thi - tx]], yerr=[[qy - qlo], [qhi - qy]], fmt="o", capsize=3,
-                        label=policy)
+            t_mean, t_low, t_high, _ = measure_interval([r[time] for r in mine], time)
+            q_mean, q_low, q_high, _ = measure_interval([r[quality] for r in mine], quality)
+            ax.errorbar(t_mean, q_mean, xerr=[[t_mean - t_low], [t_high - t_mean]],
+                        yerr=[[q_mean - q_low], [q_high - q_mean]], fmt="o", capsize=3, label=policy)
         ax.set_xlabel(f"robot time: {SCORES.get(time, time)}")
         ax.set_ylabel(SCORES.get(quality, quality) + (" (lower is better)" if quality in LOWER_IS_BETTER else ""))
         ax.grid(alpha=0.3)

@@ -9,7 +9,8 @@ import numpy as np
 from .loop_order import LOOP_ORDER_KEY
 
 #: What an episode's last ``info`` says against the ground truth (and the certainty it ended with).
-GROUND_TRUTH = ("coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate", "emmi", "pose_entropy", "joint_entropy", "collisions", "sim_steps")
+GROUND_TRUTH = ("coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate", "emmi", "pose_entropy",
+                "joint_entropy", "collisions", "sim_steps")
 
 
 class ModelActor:

@@ -29,7 +29,8 @@ RANGES = {
 }
 
 
-def mean_interval(values, confidence: float = CONFIDENCE, bounds=(-math.inf, math.inf)) -> tuple[float, float, float, int]:
+def mean_interval(values, confidence: float = CONFIDENCE,
+                  bounds=(-math.inf, math.inf)) -> tuple[float, float, float, int]:
     """Mean and Student-t confidence interval of the finite values, clipped to ``bounds``: (mean, low, high, n)."""
     x = np.asarray(values, dtype=float)
     x = x[np.isfinite(x)]

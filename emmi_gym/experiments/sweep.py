@@ -155,8 +155,8 @@ def read_sweep(path) -> Sweep:
     data = read_yaml_file(path, "sweep file", SweepFileError)
     config = build(SweepConfig, data, "", source=source, error=SweepFileError)
     if config.env_id not in gym.registry:
-        raise SweepFileError(source, "env_id", "a registered env id (emmi_gym/LoopCorridor-v0, emmi_gym/LoopOrder-v0, ...)",
-                             config.env_id)
+        raise SweepFileError(source, "env_id", "a registered env id (emmi_gym/LoopCorridor-v0, "
+                             "emmi_gym/LoopOrder-v0, ...)", config.env_id)
     for key, values in config.grid.items():
         if not isinstance(values, list) or not values:
             raise SweepFileError(source, f"grid.{key}", "a non-empty list of values", values)

@@ -437,7 +437,8 @@ def _log_lines(stream, source: str):
         number += 1
         if number == 1 and b"\0" in line:
             nul = line.index(b"\0")
-            raise CarmenFileError(source, "", f"a CARMEN log, which is text, not binary data (NUL bytes from byte {nul})")
+            raise CarmenFileError(source, "",
+                                  f"a CARMEN log, which is text, not binary data (NUL bytes from byte {nul})")
         if len(line) > MAX_LINE_BYTES:
             raise CarmenFormatError(source, number, _too_long())
         yield line

@@ -250,5 +250,6 @@ def field_path(label: str, name: str) -> str:
     return f"{label}.{name}" if label else name
 
 
-__all__ = ["MAX_LASER_RANGE", "Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError", "Preset", "Real", "Text",
-           "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "field_path", "option"]
+__all__ = ["MAX_LASER_RANGE", "Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError",
+           "Preset", "Real", "Text", "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "field_path",
+           "option"]

@@ -2,10 +2,11 @@
 
 One reader for all of them: files are capped in size before they are read; they must be UTF-8
 text; values nest at most :data:`MAX_YAML_DEPTH` deep (PyYAML builds nested values by recursion,
-which a few hundred kB of brackets would take past Python's recursion limit); aliases (``*name``, YAML's only way to make a few bytes expand into gigabytes, the
-"billion laughs") and duplicate keys are refused; ``1e5`` and ``1.0e5`` read as numbers (YAML
-1.1, PyYAML's dialect, would read them as strings); and every error names the file with the line
-and column, never echoing more than a short excerpt of the file.
+which a few hundred kB of brackets would take past Python's recursion limit); aliases
+(``*name``, YAML's only way to make a few bytes expand into gigabytes, the "billion laughs") and
+duplicate keys are refused; ``1e5`` and ``1.0e5`` read as numbers (YAML 1.1, PyYAML's dialect,
+would read them as strings); and every error names the file with the line and column, never
+echoing more than a short excerpt of the file.
 """
 
 from __future__ import annotations

@@ -47,7 +47,8 @@ def safe_command(v: float, omega: float, points: np.ndarray, radius: float, max_
     if points.size == 0:
         return v, omega
     now = float(np.min(np.hypot(points[:, 0], points[:, 1])))
-    if now > abs(v) * HORIZON + clearance or _closest_approach(np.array([v]), np.array([omega]), points)[0] >= clearance:
+    if (now > abs(v) * HORIZON + clearance
+            or _closest_approach(np.array([v]), np.array([omega]), points)[0] >= clearance):
         return v, omega  # the desired command is safe (and costs nothing): the usual case
     scales = np.repeat(SPEED_SCALES, TURN_OFFSETS.size)
     speeds = v * scales

@@ -41,8 +41,8 @@ class RBPFConfig:
     # A max-range reading beside another frees this far (0: ignore such beams); a lone one is a
     # dropped echo and frees nothing (occupancy.open_space_beams). Off by default.
     max_range_free: float = option(0.0, Real(0.0, 100.0, unit="m"),
-                                   help="a max-range reading beside another frees this far along its beam (a lone one is a "
-                                        "dropped echo); 0: such beams are ignored")
+                                   help="a max-range reading beside another frees this far along its beam "
+                                        "(a lone one is a dropped echo); 0: such beams are ignored")
     # Echoes beyond insertion_range only free the cells up to it (GMapping's maxUrange), and
     # beams beyond matching_range are left out of the matching and the weights; None: the
     # sensor's range. Long beams fix the heading: limit the insertion, not the matching.

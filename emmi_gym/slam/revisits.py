@@ -3,9 +3,10 @@
 A particle's map of the last few updates was built from that particle's own poses, so a new
 scan fits it about equally well whatever the particle's path; the differences in that fit
 are the map's discretisation noise, correlated from one update to the next (overlapping
-scans meet the same map again), and weights computed on every beam re-count them update after update until the particle set
-resamples along a plain corridor. Beams that end where the scans came back to after many
-updates test each particle's whole path since: that is the evidence a loop closure brings.
+scans meet the same map again), and weights computed on every beam re-count them update after
+update until the particle set resamples along a plain corridor. Beams that end where the scans
+came back to after many updates test each particle's whole path since: that is the evidence a
+loop closure brings.
 ``RBPFConfig.revisit_exponent`` weighs those beams, ``likelihood_exponent`` the rest (the
 proposal, the scan match, uses every beam).
 

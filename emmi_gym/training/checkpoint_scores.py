@@ -29,9 +29,9 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
     """``(curve, rows)``: ``curve`` a row per whole checkpoint of ``run_dir`` (``timesteps``, then the
     mean of each of :data:`MEASURES` over the episodes, of the finite values: ``sim_steps_to_target``
     over those that reached the target), fewest decisions first; ``rows`` every episode, its policy
-    named ``model_<N>``. The episodes are :func:`~emmi_gym.experiments.comparison.episodes_on` ``(world, episodes, seed)``
-    in the run's evaluation env (by default on that env's own world); a damaged checkpoint (cut
-    short by a kill) is skipped with a warning."""
+    named ``model_<N>``. The episodes are :func:`~emmi_gym.experiments.comparison.episodes_on`
+    ``(world, episodes, seed)`` in the run's evaluation env (by default on that env's own world); a
+    damaged checkpoint (cut short by a kill) is skipped with a warning."""
     if not 1 <= episodes <= arguments.MAX_EPISODES:
         raise ValueError(f"episodes: expected an integer in [1, {arguments.MAX_EPISODES}], got {episodes!r}")
     found = whole_checkpoints(run_dir)

@@ -210,7 +210,8 @@ _POLICY_KWARGS = {
     "activation_fn": Choice(ACTIVATIONS), "optimizer_class": Choice(OPTIMIZERS),
     "features_extractor_class": Choice(FEATURE_EXTRACTORS),
     "ortho_init": Boolean(), "full_std": Boolean(), "use_expln": Boolean(), "normalize_images": Boolean(),
-    "share_features_extractor": Boolean(), "log_std_init": Real(-20.0, 20.0), "clip_mean": Real(0.0, 100.0, open_lo=True),
+    "share_features_extractor": Boolean(), "log_std_init": Real(-20.0, 20.0),
+    "clip_mean": Real(0.0, 100.0, open_lo=True),
     "n_critics": Integer(1, 16),
 }
 _NESTED_KWARGS = {

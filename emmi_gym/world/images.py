@@ -146,7 +146,7 @@ def open_image(path) -> Image.Image:
         kind, reader = "PGM", PpmImagePlugin.PpmImageFile
     else:
         raise WorldFileError(str(path), "", f"a PNG or PGM image, not {_what_file(path, head)}")
-    try:  # the format's own reader: Pillow's decompression-bomb check would pre-empt the bound below
+    try:  # the format's own reader: Pillow's decompression-bomb check would fire before the bound below
         image = reader(str(path))
     except (SyntaxError, ValueError, OSError, EOFError, MemoryError) as exc:
         raise WorldFileError(str(path), "", f"a {kind} image with a valid header (Pillow: {_pillow_says(exc)})") \

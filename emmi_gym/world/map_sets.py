@@ -63,8 +63,8 @@ def map_set_files(name: str) -> list[Path] | None:
     if Path(name).is_dir():
         files = _map_files(Path(name))
         if not files:
-            raise ValueError(f"the folder {excerpt(name)} holds no map file ({', '.join(IMAGE_SUFFIXES + YAML_SUFFIXES)}"
-                             "); give a folder of maps, a glob or one map")
+            raise ValueError(f"the folder {excerpt(name)} holds no map file "
+                             f"({', '.join(IMAGE_SUFFIXES + YAML_SUFFIXES)}); give a folder of maps, a glob or one map")
         return files
     return None
 
