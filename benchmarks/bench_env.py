@@ -118,7 +118,7 @@ def bench(env_id: str, n_steps: int, options: dict, with_resets: bool) -> tuple[
     filter updates)."""
     SPENT.clear()
     wall = sim_steps = updates = 0
-    for _, (dt, sims, ups) in zip(range(n_steps), play(env_id, options, with_resets)):
+    for _, (dt, sims, ups) in zip(range(n_steps), play(env_id, options, with_resets), strict=False):
         wall, sim_steps, updates = wall + dt, sim_steps + sims, updates + ups
     spent = dict(SPENT)
     spent["other"] = max(0.0, wall - sum(spent.values()))
@@ -170,7 +170,7 @@ def worker(env_id: str, with_resets: bool) -> None:
     episodes = play(env_id, {}, with_resets)
     for line in sys.stdin:
         if line.startswith("warm"):
-            for _ in zip(range(int(line.split()[1])), episodes):
+            for _ in zip(range(int(line.split()[1])), episodes, strict=False):
                 pass
             episodes.close()
             episodes = play(env_id, {}, with_resets)
@@ -185,7 +185,8 @@ def report(env_id: str, n_steps: int, repeats: int, options: dict, with_resets: 
     walls = np.array([run[0] for run in runs])
     wall, sim_steps, spent, updates = runs[int(np.argsort(walls)[len(walls) // 2])]
     rates = n_steps / walls
-    print(f"{env_id}{f' {options}' if options else ''}: {n_steps / wall:.1f} env steps/s ({rates.min():.1f}-{rates.max():.1f} over {repeats} runs), "
+    print(f"{env_id}{f' {options}' if options else ''}: {n_steps / wall:.1f} env steps/s "
+          f"({rates.min():.1f}-{rates.max():.1f} over {repeats} runs), "
           f"{sim_steps / wall:.0f} simulator steps/s, {1e3 * spent['rbpf'] / max(updates, 1):.2f} ms of RBPF per "
           f"update ({n_steps} env steps, {sim_steps} simulator steps, {updates} filter updates, "
           f"{wall:.1f} s of step(){' and resets' if with_resets else ''} in the median run)")

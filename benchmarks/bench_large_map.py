@@ -62,7 +62,8 @@ def run(rec, angles, config: RBPFConfig, geometry: GridGeometry, scans: int | No
     slam = RBPF(config, max_range=LASER.max_range, geometry=geometry)
     slam.reset(rec.odometry_poses[0], np.random.default_rng(seed))
     rows, truth, resamplings = [], [], []
-    for pose, true_pose, ranges in itertools.islice(zip(rec.odometry_poses, rec.true_poses, rec.scans), scans):
+    for pose, true_pose, ranges in itertools.islice(zip(rec.odometry_poses, rec.true_poses, rec.scans, strict=True),
+                                                    scans):
         metrics = slam.process(pose, ranges, angles)
         if metrics is not None:
             if metrics.resampled:
@@ -130,7 +131,7 @@ def main() -> None:
             seed_rows, seed_ate, _ = run(rec, LASER.angles, config, geometry, seed=seed)
             runs.append((seed_ate, sum(r.resampled for r in seed_rows)))
         print("filter seeds " + ", ".join(f"{s}: ATE {a:.3f} m ({n} resamplings)"
-                                          for s, (a, n) in zip(args.filter_seeds, runs)))
+                                          for s, (a, n) in zip(args.filter_seeds, runs, strict=True)))
         print(f"median ATE over {len(runs)} filter seeds {np.median([a for a, _ in runs]):.3f} m")
 
 

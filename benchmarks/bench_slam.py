@@ -42,7 +42,7 @@ def run(particles: int, n_beams: int, recorded=None, side: float | None = None):
     slam.reset(rec.odometry_poses[0], np.random.default_rng(1))
     rows = []
     t0 = time.perf_counter()
-    for pose, ranges in zip(rec.odometry_poses, rec.scans):
+    for pose, ranges in zip(rec.odometry_poses, rec.scans, strict=True):
         metrics = slam.process(pose, ranges, angles)
         if metrics is not None:
             rows.append(metrics)

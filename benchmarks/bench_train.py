@@ -80,7 +80,7 @@ def single_thread_decision_seconds(config, decisions: int) -> np.ndarray:
             worker.submit("reset")
             worker.result()
 
-            def decide():
+            def decide(worker=worker):
                 worker.submit("play", weights, 1)
                 worker.result()
 

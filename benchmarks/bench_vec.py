@@ -37,7 +37,7 @@ def _worker_env(env_id: str):
 def _masked_choice(rngs: list, masks) -> np.ndarray:
     """One valid action per env: a random slot among each row of ``masks`` that is True, env i's drawn
     from ``rngs[i]`` (:func:`_rngs`)."""
-    return np.array([rng.choice(np.flatnonzero(mask)) for rng, mask in zip(rngs, masks)])
+    return np.array([rng.choice(np.flatnonzero(mask)) for rng, mask in zip(rngs, masks, strict=True)])
 
 
 def _rngs(n: int) -> list:
@@ -111,10 +111,10 @@ def main() -> None:
     rows = [("single process", 1, single(args.env_id, args.seconds))]
     print(f"single process: {rows[0][2]:.1f} steps/s", flush=True)
     for n in args.envs:
-        for label, run in (("gymnasium sync", lambda: gymnasium_vec(args.env_id, n, "sync", args.seconds)),
-                           ("gymnasium async", lambda: gymnasium_vec(args.env_id, n, "async", args.seconds)),
-                           ("SB3 DummyVecEnv", lambda: sb3_vec(args.env_id, n, False, args.seconds)),
-                           ("SB3 SubprocVecEnv", lambda: sb3_vec(args.env_id, n, True, args.seconds))):
+        for label, run in (("gymnasium sync", partial(gymnasium_vec, args.env_id, n, "sync", args.seconds)),
+                           ("gymnasium async", partial(gymnasium_vec, args.env_id, n, "async", args.seconds)),
+                           ("SB3 DummyVecEnv", partial(sb3_vec, args.env_id, n, False, args.seconds)),
+                           ("SB3 SubprocVecEnv", partial(sb3_vec, args.env_id, n, True, args.seconds))):
             rate = run()
             rows.append((label, n, rate))
             print(f"{label}, {n} envs: {rate:.1f} steps/s", flush=True)

@@ -42,6 +42,31 @@ def free_poses(world, n: int, rng) -> np.ndarray:
     return np.array(poses)
 
 
+def time_world(world, repeats: int, rng) -> tuple[float, float, float]:
+    """Medians (us) on ``world``: a scan with the numba kernel, a scan with pymunk segment queries, a control step."""
+    sim = Simulator(world)
+    sim.reset(np.random.default_rng(0))
+    config = sim.laser.config
+    only_walls = pymunk.ShapeFilter(mask=pymunk.ShapeFilter.ALL_MASKS() ^ 1)
+    sim.shape.filter = pymunk.ShapeFilter(categories=1)
+    poses = free_poses(world, 64, rng)
+    cycle = iter(range(10**9))
+
+    def next_pose():
+        return poses[next(cycle) % len(poses)]
+
+    def pymunk_scan():
+        x, y, theta = next_pose()
+        for a in config.angles + theta:
+            sim.space.segment_query_first((x, y), (x + config.max_range * math.cos(a),
+                                                   y + config.max_range * math.sin(a)), 0.0, only_walls)
+
+    kernel = 1e6 * median_seconds(lambda: sim.laser.true_ranges(next_pose()), repeats)
+    queries = 1e6 * median_seconds(pymunk_scan, max(1, repeats // 5))
+    step = 1e6 * median_seconds(lambda: sim.step(0.3, 0.2 * rng.standard_normal()), repeats)
+    return kernel, queries, step
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=arguments.integer(1), default=500)
@@ -56,26 +81,7 @@ def main() -> None:
     print("| world | walls | scan, kernel (us) | scan, pymunk queries (us) | control step (us) |")
     print("| --- | --- | --- | --- | --- |")
     for name, world in worlds.items():
-        sim = Simulator(world)
-        sim.reset(np.random.default_rng(0))
-        config = sim.laser.config
-        only_walls = pymunk.ShapeFilter(mask=pymunk.ShapeFilter.ALL_MASKS() ^ 1)
-        sim.shape.filter = pymunk.ShapeFilter(categories=1)
-        poses = free_poses(world, 64, rng)
-        cycle = iter(range(10**9))
-
-        def next_pose():
-            return poses[next(cycle) % len(poses)]
-
-        def pymunk_scan():
-            x, y, theta = next_pose()
-            for a in config.angles + theta:
-                sim.space.segment_query_first((x, y), (x + config.max_range * math.cos(a),
-                                                       y + config.max_range * math.sin(a)), 0.0, only_walls)
-
-        kernel = 1e6 * median_seconds(lambda: sim.laser.true_ranges(next_pose()), args.repeats)
-        queries = 1e6 * median_seconds(pymunk_scan, max(1, args.repeats // 5))
-        step = 1e6 * median_seconds(lambda: sim.step(0.3, 0.2 * rng.standard_normal()), args.repeats)
+        kernel, queries, step = time_world(world, args.repeats, rng)
         print(f"| {name} | {len(world.walls)} | {kernel:.1f} | {queries:.1f} | {step:.1f} |")
 
 

@@ -58,7 +58,7 @@ def main() -> None:
         slam = RBPF(config, max_range=laser.max_range, geometry=geometry)
         slam.reset(rec.odometry_poses[0], np.random.default_rng(1000 + seed))
         metrics, steps = [], []
-        for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans)):
+        for k, (pose, ranges) in enumerate(zip(rec.odometry_poses, rec.scans, strict=True)):
             m = slam.process(pose, ranges, angles)
             if m is not None:
                 metrics.append(m)
@@ -71,11 +71,13 @@ def main() -> None:
         close = loop_closure_update(truth, [rec.scans[k] for k in steps], angles, laser.max_range, geometry,
                                     first_leg, left + 1)
         if close is None:
-            raise SystemExit(f"seed {seed}: no scan after the left corridor saw the first leg again (the loop never closed)")
+            raise SystemExit(f"seed {seed}: no scan after the left corridor saw the first leg again "
+                             "(the loop never closed)")
         emmi = [m.emmi for m in metrics]
         window = metrics[max(close - 3, 0):close + 8]
         rows.append((
-            absolute_trajectory_error(best, truth, align=False), absolute_trajectory_error(odometry, truth, align=False),
+            absolute_trajectory_error(best, truth, align=False),
+            absolute_trajectory_error(odometry, truth, align=False),
             absolute_trajectory_error(best, truth),
             map_accuracy(slam.best_map(), truth_grid),
             map_accuracy(slam.best_map(), truth_grid, geometry=geometry, transform=trajectory_alignment(best, truth)),
@@ -84,20 +86,24 @@ def main() -> None:
             sum(m.resampled for m in metrics[:max(close - 3, 0)]),
             abs(left + 1 + int(np.argmax(np.diff(emmi[left:]))) - close) <= 5))
         print(f"seed {seed:2d}: ATE {rows[-1][0]:.3f} m (dead reckoning {rows[-1][1]:.2f} m), "
-              f"map accuracy {rows[-1][3]:.3f} (registered {rows[-1][4]:.3f}); closure at update {close} of {len(steps)}, "
+              f"map accuracy {rows[-1][3]:.3f} (registered {rows[-1][4]:.3f}); "
+              f"closure at update {close} of {len(steps)}, "
               f"{int(rows[-1][7])} resamplings before it", flush=True)
     r = np.array(rows, dtype=float)
     n = args.seeds
-    print(f"\n{n} seeds, {args.particles} particles; laser {np.degrees(laser.fov):.0f} deg, {laser.n_beams} beams, {laser.max_range:g} m; "
+    print(f"\n{n} seeds, {args.particles} particles; laser {np.degrees(laser.fov):.0f} deg, {laser.n_beams} beams, "
+          f"{laser.max_range:g} m; "
           f"odometry alphas {noise.alphas}, drift {noise.heading_drift:g} rad/m")
     print(f"ATE of the best path: median {np.median(r[:, 0]):.3f} m, max {r[:, 0].max():.3f} m (aligned: median "
           f"{np.median(r[:, 2]):.3f} m); dead reckoning median {np.median(r[:, 1]):.2f} m; "
           f"worst ratio best / dead reckoning {(r[:, 0] / r[:, 1]).max():.2f}")
     print(f"map accuracy: median {np.median(r[:, 3]):.3f} (min {r[:, 3].min():.3f}); registered median "
           f"{np.median(r[:, 4]):.3f} (min {r[:, 4].min():.3f}), >= 0.90 on {int(np.sum(r[:, 4] >= 0.9))} of {n}")
-    print(f"loop closure: EMMI up on {int(r[:, 5].sum())} of {n}; Neff drop or resampling on {int(r[:, 6].sum())} of {n}; "
+    print(f"loop closure: EMMI up on {int(r[:, 5].sum())} of {n}; "
+          f"Neff drop or resampling on {int(r[:, 6].sum())} of {n}; "
           f"EMMI's largest rise (second half) within 5 updates of it on {int(r[:, 8].sum())} of {n}")
-    print(f"resamplings before the closure: none on {int(np.sum(r[:, 7] == 0))} of {n} (median {np.median(r[:, 7]):.0f})")
+    print(f"resamplings before the closure: none on {int(np.sum(r[:, 7] == 0))} of {n} "
+          f"(median {np.median(r[:, 7]):.0f})")
 
 
 if __name__ == "__main__":

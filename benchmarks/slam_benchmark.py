@@ -86,7 +86,8 @@ def main() -> None:
     parser.add_argument("--threads", type=arguments.integer(1), default=None,
                         help="kernel threads per run (default: one per core)")
     parser.add_argument("--flaser-fov", type=arguments.number(0.0, 360.0, "degrees"), default=180.0,
-                        help="field of view of the FLASER lines, degrees (the first beam at -fov/2, the last at +fov/2)")
+                        help="field of view of the FLASER lines, degrees "
+                             "(the first beam at -fov/2, the last at +fov/2)")
     args = parser.parse_args()
     config = rbpf_config(parser, args.slam, None if args.preset == "none" else args.preset,
                          particles=args.particles, resolution=args.resolution, linear_update=0.0,
@@ -114,7 +115,8 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for r in results:
         print(f"| {r['log']} | {r['updates']} | {r['dead_reckoning']:.2f} | {r['ate']:.3f} | {r['median_ms']:.1f} | "
-              f"{r['max_ms']:.1f} | {r['matching_ms']:.1f} / {r['insertion_ms']:.1f} / {r['metrics_ms']:.1f} | {r['cpu_ms']:.1f} | "
+              f"{r['max_ms']:.1f} | {r['matching_ms']:.1f} / {r['insertion_ms']:.1f} / {r['metrics_ms']:.1f} | "
+              f"{r['cpu_ms']:.1f} | "
               f"{r['resamplings']} | {r['resampling_max_ms']:.1f} |")
     if len(args.filter_seeds) > 1:
         print("\n| log | runs | median ATE (m) | min - max |\n| --- | --- | --- | --- |")

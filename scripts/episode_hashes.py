@@ -73,8 +73,8 @@ def episode_hash(env_id: str, seed: int, steps: int) -> str:
 def replay_hash() -> str:
     """Replay the test log with the command line and hash its measures per update and its trajectory."""
     with tempfile.TemporaryDirectory() as out:
-        subprocess.run([sys.executable, "-m", "emmi_gym.cli", "replay", str(LOG), "--particles", "8", "--max-range", "30",
-                        "--out", out, "--quiet"], check=True, capture_output=True)
+        subprocess.run([sys.executable, "-m", "emmi_gym.cli", "replay", str(LOG), "--particles", "8",
+                        "--max-range", "30", "--out", out, "--quiet"], check=True, capture_output=True)
         digest = hashlib.sha256()
         with open(Path(out) / "metrics.csv", newline="") as f:
             for row in csv.DictReader(f):  # the measures, not the timings (``*_ms``), which vary run to run

@@ -121,9 +121,11 @@ def cases(folder: Path) -> list[tuple[str, object]]:
          world_file(folder, yaml.safe_dump(dict(WORLD, routes={"to_decision": ["start", [0, 2.5]]})))),
         # 3. alias bombs
         ("1 KB alias bomb as a world file", world_file(folder, yaml.safe_dump(WORLD) + BOMB, "bomb.yaml")),
-        ("1 KB alias bomb as an agent configuration", agent_file(folder, yaml.safe_dump(AGENT) + BOMB, "bomb_agent.yaml")),
+        ("1 KB alias bomb as an agent configuration",
+         agent_file(folder, yaml.safe_dump(AGENT) + BOMB, "bomb_agent.yaml")),
         # 4. sizes
-        ("world bounds of 1e5 m", world_file(folder, yaml.safe_dump(dict(WORLD, bounds={"xmin": 0, "ymin": 0, "xmax": 1e5, "ymax": 3})))),
+        ("world bounds of 1e5 m",
+         world_file(folder, yaml.safe_dump(dict(WORLD, bounds={"xmin": 0, "ymin": 0, "xmax": 1e5, "ymax": 3})))),
         ("coordinates of 1e300", world_file(folder, yaml.safe_dump(dict(WORLD, start={"x": 1e300, "y": 0})))),
         ("particles=1e9", make(particles=10**9)),
         ("obs_size=1e6", make(obs_size=10**6)),
@@ -151,14 +153,16 @@ def cases(folder: Path) -> list[tuple[str, object]]:
         ("slam logodds_step=1e6", make(slam={"logodds_step": 1e6})),
         ("laser range_sigma=inf", make(laser={"range_sigma": float("inf")})),
         ("generator wall_thickness=nan", make("emmi_gym/Explore-v0", generator={"wall_thickness": float("nan")})),
-        ("laser max_range=0.5: map_accuracy", make("emmi_gym/ExploreVelocity-v0", reset=True, laser={"max_range": 0.5})),
+        ("laser max_range=0.5: map_accuracy",
+         make("emmi_gym/ExploreVelocity-v0", reset=True, laser={"max_range": 0.5})),
         # 8. world files
         ("YAML syntax error", world_file(folder, "name: box\nbounds: {xmin: 0, ymin: 0\nwalls: []\n", "syntax.yaml")),
         ("binary world file", world_file(folder, os.urandom(512).replace(b"\0", b"\1") + b"\0", "binary.yaml")),
         ("UTF-16 world file", world_file(folder, yaml.safe_dump(WORLD).encode("utf-16"), "utf16.yaml")),
         ("world='/etc/passwd' (a copy)", lambda: load_world(folder / "passwd")),
         ("duplicate keys", world_file(folder, yaml.safe_dump(WORLD) + "name: again\n", "duplicate.yaml")),
-        ("1.0e1 in a world file", world_file(folder, yaml.safe_dump(WORLD).replace("xmax: 3", "xmax: 3.0e0"), "exp.yaml")),
+        ("1.0e1 in a world file",
+         world_file(folder, yaml.safe_dump(WORLD).replace("xmax: 3", "xmax: 3.0e0"), "exp.yaml")),
         ("base: ../../../../etc/passwd", agent_file(folder, {"base": "../../../../etc/passwd"})),
         ("base: .", agent_file(folder, {"base": "."}, "base_dot.yaml")),
         # 9. agent configurations
@@ -196,7 +200,8 @@ def _pickling(name: str):
     def action():
         env = gym.make(f"emmi_gym/{name}", particles=3).unwrapped
         env.reset(seed=0)
-        env.step(env.action_space.sample() if env.config.action_mode == "velocity" else int(np.flatnonzero(env.action_masks())[0]))
+        env.step(env.action_space.sample() if env.config.action_mode == "velocity"
+                 else int(np.flatnonzero(env.action_masks())[0]))
         pickle.loads(pickle.dumps(env))
         copy.deepcopy(env)
         return "both copies made"
@@ -529,7 +534,8 @@ def run_probe(command: list[str], limit: float = PROBE_LIMIT, pick: str | None =
     """:func:`_measure` of ``command``, run from a small Python process."""
     source = (f"import json, sys\n{inspect.getsource(_measure)}\n"
               f"print(json.dumps(_measure(json.loads(sys.argv[1]), {limit!r}, {MEMORY_CAP_MB!r}, {pick!r})))")
-    result = subprocess.run([sys.executable, "-c", source, json.dumps(command)], capture_output=True, text=True, check=False)
+    result = subprocess.run([sys.executable, "-c", source, json.dumps(command)], capture_output=True, text=True,
+                            check=False)
     lines = result.stdout.strip().splitlines()
     if not lines:  # the small process measuring the probe was killed too (the kernel's out-of-memory killer)
         return {"rc": result.returncode, "seconds": float("nan"), "peak_mb": float("nan"), "progress": False,
@@ -539,15 +545,16 @@ def run_probe(command: list[str], limit: float = PROBE_LIMIT, pick: str | None =
 
 
 def probes(folder: Path, only: str | None = None) -> None:
-    print("\n| probe (subprocess) | exit | outcome (last line of output) | s | peak MB |\n| --- | --- | --- | --- | --- |",
-          flush=True)
+    print("\n| probe (subprocess) | exit | outcome (last line of output) | s | peak MB |\n"
+          "| --- | --- | --- | --- | --- |", flush=True)
     for label, command, *pick in probe_inputs(folder):
         if only is not None and only not in label:
             continue
         r = run_probe(command, pick=pick[0] if pick else None)
         outcome = r["last"][:300].replace("|", "/")
         if r["killed"]:
-            shown = f"progress shown, last output at {r['last_output']:.0f} s" if r["progress"] else "no progress output"
+            shown = (f"progress shown, last output at {r['last_output']:.0f} s" if r["progress"]
+                     else "no progress output")
             outcome = f"KILLED at {r['killed']} ({shown}): {outcome}"
         print(f"| {label} | {r['rc']} | {outcome} | {r['seconds']:.1f} | {r['peak_mb']:.0f} |", flush=True)
 

@@ -44,7 +44,8 @@ def main() -> None:
                         help=f"wall time of training, for a run folder without {TRAINING_RECORD}")
     arguments.add_workers(parser)
     parser.add_argument("--episodes-csv", nargs="+", type=Path, default=None,
-                        help="episodes.csv files of 'emmi-gym evaluate --out' with these options, instead of evaluating")
+                        help="episodes.csv files of 'emmi-gym evaluate --out' with these options, "
+                             "instead of evaluating")
     parser.add_argument("--evaluated-on", default=None, help="the machine the --episodes-csv files were made on")
     parser.add_argument("--note", default="", help="a paragraph for the card (e.g. what the run started from)")
     args = parser.parse_args()

@@ -2,8 +2,8 @@
 
     python docs/_scripts/render_env_previews.py [--out docs/envs] [--seed 0] [--decisions 12] [--steps 600]
 
-Waypoint ids: after ``reset`` and ``--decisions`` decisions of the frontier policy (ExplorePlans-v0: 40; LoopCorridor-v0:
-right after ``reset``, at the decision point); the velocity id: after ``--steps`` steps driving ahead
+Waypoint ids: after ``reset`` and ``--decisions`` decisions of the frontier policy (ExplorePlans-v0: 40;
+LoopCorridor-v0: right after ``reset``, at the decision point); the velocity id: after ``--steps`` steps driving ahead
 and turning. Left: the true world, the robot (red) and its true path (green); right: the expected
 map, the particles (blue) and the best particle's path (orange).
 """
