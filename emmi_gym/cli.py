@@ -183,14 +183,14 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     results = run_benchmark(config, args.rewards, arguments.seed_range(args), args.timesteps, args.episodes,
                             args.baselines, args.out, workers=args.workers, ray_address=ray_address,
                             progress=not args.quiet, init_from=args.init_from,
-                            allow_no_training=args.allow_no_training, report=print)
+                            allow_no_training=args.allow_no_training, eval_seed=args.eval_seed, report=print)
     elapsed = time.perf_counter() - started
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
               f"{args.timesteps} training steps per agent"
               f"{f' (from the weights of {args.init_from})' if args.init_from else ''}, "
               f"seeds {args.first_seed}-{args.first_seed + args.seeds - 1} per reward, {args.episodes} held-out "
-              f"evaluation episodes each; {elapsed / 60:.1f} min wall time "
+              f"evaluation episodes each (seeds from {args.eval_seed}); {elapsed / 60:.1f} min wall time "
               f"({'Ray' if args.ray else 'local processes'}"
               f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}). "
               f"Mean [95% t-interval]: over agents for trained variants (one agent: its mean), over episodes "
@@ -281,6 +281,9 @@ def _add_benchmark_parser(sub) -> None:
     bench.add_argument("--timesteps", type=_integer(1), default=None,
                        help="training steps per agent (default: the configuration's total_timesteps)")
     bench.add_argument("--episodes", type=_EPISODES, default=10, help="held-out evaluation episodes per agent")
+    bench.add_argument("--eval-seed", type=_SEED, default=200_000,
+                       help="first held-out episode's seed, for the agents and the baselines alike (default 200000; "
+                            "LoopOrder-v0 holds out the seeds from 1000000)")
     bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
     bench.add_argument("--init-from", default=None, metavar="MODEL",
                        help="every agent starts from this model's weights (as 'train --init-from'), e.g. a "

@@ -45,6 +45,7 @@ TABLE_COLUMNS = {
     "sim_steps_to_target": "simulator steps to the target",
     "revisit_share": "decisions that went back to a revisit target",
     LOOP_ORDER_KEY: "closed the loop before the new area",
+    "sim_steps": "robot time (simulator steps)",
 }
 
 
@@ -119,10 +120,11 @@ def run_state(job: Job) -> str:
 
 
 def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir,
-              init_from=None, allow_no_training: bool = False) -> list[Job]:
+              init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED) -> list[Job]:
     """The agents (one per reward and seed, trained with ``dummy`` vectorisation: the jobs run in
     parallel already; each from the weights of the model ``init_from``, if given, as ``train
-    --init-from``) and one job per scripted baseline."""
+    --init-from``) and one job per scripted baseline; every job is evaluated on the ``episodes``
+    held-out episodes seeded from ``eval_seed``."""
     out = Path(out_dir)
     if baselines and _action_mode(config) != "waypoint":
         raise ValueError(f"the scripted baselines {list(baselines)} choose waypoint targets, but {config.env_id} "
@@ -133,9 +135,9 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
             agent = replace(config, env_kwargs=dict(config.env_kwargs, reward=reward), seed=int(seed),
                             total_timesteps=int(timesteps), vec_env="dummy")
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
-                            EVALUATION_SEED, init_from, allow_no_training))
+                            eval_seed, init_from, allow_no_training))
     for name in baselines:
-        jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, EVALUATION_SEED))
+        jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, eval_seed))
     return jobs
 
 
@@ -166,13 +168,15 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
 
 def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
                   workers: int | None = None, ray_address: str | None = None, progress: bool = True,
-                  init_from=None, allow_no_training: bool = False, report=None) -> list[dict]:
+                  init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED,
+                  report=None) -> list[dict]:
     """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed.
     ``init_from`` (a model every agent starts from, as ``train``'s) and the run folders (:func:`run_state`)
     are checked before any job starts; ``report``: called with a sentence saying where the agents start and
     how many decisions each will train."""
     init_from = None if init_from is None else Path(init_from)
-    jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from, allow_no_training)
+    jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from, allow_no_training,
+                     eval_seed)
     agents = [job for job in jobs if job.kind == "agent"]
     if init_from is not None and agents:
         start = check_init_from(init_from, agents[0].config, allow_no_training)
@@ -225,7 +229,7 @@ def markdown(results: list[dict], header: str) -> str:
         cells = []
         for column in columns:
             mean, low, high, n = entry[column]
-            digits = 0 if column == "sim_steps_to_target" else 3
+            digits = 0 if column in ("sim_steps_to_target", "sim_steps") else 3
             if n == 0:
                 cells.append("n/a")
             elif n == 1:  # one agent: no interval
