@@ -55,9 +55,20 @@ class Buffers(BaseCallback):
         return True
 
 
-def collect(data: dict, vec_env: str, rollouts: int, *, ray_address=None, model_hook=None):
-    """The buffers of ``rollouts`` rollouts (with an update after each) of a model of ``data`` on ``vec_env``,
-    and its initial weights."""
+class BuffersAndWeights(Buffers):
+    """:class:`Buffers`, and a copy of the learner's weights at the start of each rollout."""
+
+    def __init__(self):
+        super().__init__()
+        self.weights = []
+
+    def _on_rollout_start(self) -> None:
+        self.weights.append(copy.deepcopy(self.model.policy.state_dict()))
+
+
+def collect(data: dict, vec_env: str, rollouts: int, *, ray_address=None, model_hook=None, buffers=None):
+    """The buffers of ``rollouts`` rollouts (with an update after each) of a model of ``data`` on ``vec_env``
+    (kept by ``buffers``, a :class:`Buffers`), and its initial weights."""
     config = parse_agent_config(data)
     env = make_vec_env(config, config.n_envs, config.seed, vec_env, ray_address=ray_address)
     try:
@@ -65,7 +76,7 @@ def collect(data: dict, vec_env: str, rollouts: int, *, ray_address=None, model_
         initial = copy.deepcopy(model.policy.state_dict())
         if model_hook is not None:
             model_hook(model)
-        buffers = Buffers()
+        buffers = Buffers() if buffers is None else buffers
         callbacks = [buffers] + ([SemiMarkovDiscounts(config.discount_unit)] if config.discount_unit else [])
         model.learn(rollouts * model.n_steps * config.n_envs, callback=callbacks)
     finally:
@@ -179,6 +190,41 @@ def test_training_with_workers_stops_on_ctrl_c_resumes_and_starts_from_another_m
     more = train(parse_agent_config(dict(data, total_timesteps=48)), tmp_path / "more", progress=False,
                  init_from=finished.model_path)
     assert more.timesteps >= 48 and len(evaluate_model(more.model_path, episodes=1)) == 1
+
+
+def test_with_a_policy_lag_each_rollout_is_played_with_the_weights_one_update_before():
+    """policy_lag 1: the workers play the next fragments while the learner updates, so the first two rollouts
+    are played with the initial weights and the third with the weights after the first update; the buffer
+    holds the acting policy's log-probabilities (what PPO's ratio divides by). The first rollout is the one
+    played without a lag, and the same seeds give the same rollouts."""
+    models = []
+    lagged = BuffersAndWeights()
+    initial, rollouts = collect(agent(MASKED, policy_lag=1), "workers", 3, model_hook=models.append,
+                                buffers=lagged)
+    same_rollouts(rollouts[:1], collect(agent(MASKED), "workers", 1)[1])
+    same_rollouts(rollouts, collect(agent(MASKED, policy_lag=1), "workers", 3)[1])
+    policy = models[0].policy
+    learner = lagged.weights  # the learner's weights at each rollout's start: initial, after 1 update, after 2
+
+    def log_probs(weights, rollout):
+        policy.load_state_dict(weights)
+        obs = {key: th.as_tensor(value.reshape(-1, *value.shape[2:])) for key, value in rollout["observations"].items()}
+        masks = rollout["action_masks"].reshape(len(rollout["actions"].reshape(-1)), -1)
+        with th.no_grad():
+            _, log_prob, _ = policy.evaluate_actions(obs, th.as_tensor(rollout["actions"].reshape(-1)),
+                                                     action_masks=masks)
+        return log_prob.numpy().reshape(rollout["log_probs"].shape)
+
+    acted_with = [initial, initial, learner[1]]
+    for rollout, weights in zip(rollouts, acted_with, strict=True):
+        np.testing.assert_allclose(rollout["log_probs"], log_probs(weights, rollout), rtol=1e-5, atol=1e-6)
+    assert not np.allclose(rollouts[2]["log_probs"], log_probs(learner[2], rollouts[2]), rtol=1e-5, atol=1e-6)
+
+
+def test_a_policy_lag_without_rollout_workers_is_a_clear_error():
+    with pytest.raises(AgentConfigError, match="policy_lag") as error:
+        parse_agent_config({**agent(MASKED), "vec_env": "subproc", "policy_lag": 1}, source="agent.yaml")
+    assert error.value.field == "policy_lag"
 
 
 @pytest.mark.parametrize("change, expected", [

@@ -133,7 +133,8 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
     for reward in rewards:
         for seed in seeds:
             agent = replace(config, env_kwargs=dict(config.env_kwargs, reward=reward), seed=int(seed),
-                            total_timesteps=int(timesteps), vec_env="dummy")
+                            total_timesteps=int(timesteps), vec_env="dummy",
+                            policy_lag=0)
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
                             eval_seed, init_from, allow_no_training))
     for name in baselines:

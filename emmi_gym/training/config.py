@@ -7,7 +7,8 @@ steps of robot time instead of per decision (semi-Markov discounting of macro-ac
 :mod:`emmi_gym.training.semi_markov`; PPO, A2C and MaskablePPO). ``base: other.yaml`` (relative to the file) starts
 from another configuration and overrides what the file gives (dicts are merged key by key,
 but ``hyperparameters`` are replaced whole: they belong to one algorithm), so the reward
-variants of one agent are one line each. Every mistake raises
+variants of one agent are one line each. ``policy_lag: 1`` lets rollout workers play the next
+fragment while the learner updates (see :mod:`emmi_gym.training.rollout_workers`). Every mistake raises
 :class:`AgentConfigError` naming the file, the field and what was expected.
 """
 
@@ -45,7 +46,7 @@ ROLLOUT_WORKERS = ("workers", "ray_workers")
 #: The algorithms that learn from rollouts (collected by rollout workers by default).
 ON_POLICY = ("PPO", "A2C", "MaskablePPO")
 _KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "discount_unit", "n_envs", "vec_env",
-         "total_timesteps", "seed", "eval", "checkpoint_freq")
+         "policy_lag", "total_timesteps", "seed", "eval", "checkpoint_freq")
 
 
 class AgentConfigError(FieldError):
@@ -104,6 +105,7 @@ class AgentConfig:
     discount_unit: int | None = None
     n_envs: int = field(default_factory=lambda: default_n_envs())
     vec_env: str = "subproc"
+    policy_lag: int = 0
     total_timesteps: int = 20_000
     seed: int = 0
     eval: EvalSchedule = EvalSchedule()
@@ -418,9 +420,18 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
         env_id=env_id, env_kwargs=dict(kwargs), algorithm=algorithm, policy=policy, hyperparameters=hyper,
         discount_unit=discount_unit, n_envs=field("n_envs", Integer(1, MAX_ENVS, "each env is a process with its "
                                                                     "own filter, 100-300 MB"), default_n_envs()),
-        vec_env=_vec_env(source, algorithm, data.get("vec_env")),
+        vec_env=_vec_env(source, algorithm, data.get("vec_env")), policy_lag=field("policy_lag", Integer(0, 1), 0),
         total_timesteps=field("total_timesteps", _STEPS, 20_000),
         seed=field("seed", Integer(0, 2**32 - 1), 0), eval=eval_schedule,
         checkpoint_freq=field("checkpoint_freq", _STEPS, 5000), source=source)
+    if config.policy_lag and not rollout_workers(config.n_envs, config.vec_env):
+        raise AgentConfigError(source, "policy_lag", "0 unless rollout workers collect (vec_env workers with n_envs > "
+                               f"1, or ray_workers): it lets them play ahead of the learner; here vec_env is "
+                               f"{config.vec_env} with n_envs {config.n_envs}", config.policy_lag)
     _check_env(source, config)
     return config
+
+
+def rollout_workers(n_envs: int, vec_env: str) -> bool:
+    """Whether the envs run in rollout workers (one env under ``workers`` runs in the learner's process)."""
+    return vec_env == "ray_workers" or (vec_env == "workers" and n_envs > 1)

@@ -20,6 +20,15 @@ reward is bootstrapped with the value of its terminal observation, the buffer ge
 entries SB3 would have stored for the same actions, and the algorithm's own ``train()`` learns
 from it. Models of that class save and load as the algorithm itself.
 
+With ``policy_lag=1`` the workers do not wait for the update: as soon as the learner has a rollout's
+fragments it sends the weights it holds and the workers play the next fragment with them while it
+updates, so the update no longer holds up the workers (Sample Factory's asynchronous PPO, Petrenko et
+al. 2020, and IMPALA-style learners, Espeholt et al. 2018, do the same). Each rollout is then played
+with the weights of one update before the learner's: the buffer keeps the behaviour policy's
+log-probabilities and values, so PPO's clipped ratio ``pi_theta / pi_behaviour`` (Schulman et al. 2017,
+Eq. 7) bounds the step from the policy that acted, as Sample Factory's does. The default, 0, is SB3's
+on-policy schedule exactly.
+
 The envs are made as SB3's ``make_vec_env`` makes them (env ``i`` seeded ``seed + i``, its action
 space too), and each worker samples its actions from a torch generator seeded from ``(seed, i)``:
 the same seeds give the same rollouts with local processes and with Ray actors, on any nodes.
@@ -163,12 +172,20 @@ class RolloutWorkers(VecEnv):
     """``n_envs`` envs made by ``env_fn``, each in a :class:`RolloutWorker` of its own: local processes, or
     Ray actors (one CPU each) with ``ray_address`` (``"local"``: a Ray instance on this machine; ``None``
     and ``on_ray``: ``RAY_ADDRESS``, else local). A ``VecEnv`` for SB3's model (spaces, ``reset``,
-    ``get_attr``, ``env_method``); the decisions are played by :meth:`play`, not ``step``."""
+    ``get_attr``, ``env_method``); the decisions are played by :meth:`play`, not ``step``. ``policy_lag``
+    (0 or 1): how many updates the weights a fragment is played with may be behind the learner's (see the
+    module docstring)."""
 
-    def __init__(self, env_fn, n_envs: int, seed: int, *, on_ray: bool = False, ray_address: str | None = None):
+    def __init__(self, env_fn, n_envs: int, seed: int, *, on_ray: bool = False, ray_address: str | None = None,
+                 policy_lag: int = 0):
+        if policy_lag not in (0, 1):
+            raise ValueError(f"policy_lag: 0 or 1 updates, got {policy_lag!r}")
         self._ray, self._started_ray = connect_ray(ray_address) if on_ray else (None, False)
         self.workers = []
         self.closed = False
+        self.policy_lag = policy_lag
+        self._ahead_under_way = False  # the workers are playing the next fragments (policy_lag 1)
+        self._ahead: list[Fragment] | None = None  # those fragments, gathered before another call
         try:
             for rank in range(n_envs):
                 args = (f"rollout worker {rank}", RolloutWorker, env_fn, range(rank, rank + 1), seed)
@@ -182,7 +199,9 @@ class RolloutWorkers(VecEnv):
         super().__init__(n_envs, observation_space, action_space)
 
     def _each(self, calls: list[tuple]) -> list:
-        """Each ``(rank, method, *args)`` on the worker of env ``rank``, all at once; their results in order."""
+        """Each ``(rank, method, *args)`` on the worker of env ``rank``, all at once; their results in order
+        (after the fragments played ahead, if any, which are kept for the next :meth:`play`)."""
+        self._gather_ahead()
         for rank, method, *args in calls:
             self.workers[rank].submit(method, *args)
         return [self.workers[rank].result() for rank, *_ in calls]
@@ -190,22 +209,42 @@ class RolloutWorkers(VecEnv):
     def _all(self, method: str, *args) -> list:
         return self._each([(rank, method, *args) for rank in range(self.num_envs)])
 
+    def _gather_ahead(self) -> None:
+        """Wait for the fragments played ahead (if under way) and keep them, so the workers take other calls."""
+        if self._ahead_under_way:
+            self._ahead_under_way = False
+            self._ahead = [worker.result() for worker in self.workers]
+
     def reset(self):
-        """Reset every env (with the seeds given to ``seed``, if any); their observations."""
+        """Reset every env (with the seeds given to ``seed``, if any); their observations. Fragments played
+        ahead from the envs' earlier state are dropped."""
+        self._gather_ahead()
+        self._ahead = None
         observations = self._each([(rank, "reset", seed) for rank, seed in enumerate(self._seeds)])
         self._reset_seeds()
         return _join_envs(observations, 0)
 
     def play(self, policy, n_steps: int, acting: Acting) -> Fragment:
-        """Every worker plays ``n_steps`` decisions with ``policy``'s current weights; the fragments joined
-        along the envs, in rank order."""
+        """The fragments of ``n_steps`` decisions of every worker, joined along the envs in rank order:
+        played with ``policy``'s current weights, or with ``policy_lag`` 1, those the workers played ahead
+        with the weights of the call before (the first call plays with the current ones); with
+        ``policy_lag`` 1 the workers then start the next fragments with the current weights."""
         if not self._policy_sent:
             self._all("set_policy", copy.deepcopy(policy).to("cpu"), acting)
             self._policy_sent = True
-        weights = {name: tensor.detach().cpu() for name, tensor in policy.state_dict().items()}
+        # a snapshot: local processes receive tensors through shared memory (torch's reductions for
+        # multiprocessing), and with a policy lag the learner's update must not write into what a worker reads
+        weights = {name: tensor.detach().cpu().clone() for name, tensor in policy.state_dict().items()}
         if self._ray is not None:
             weights = self._ray.put(weights)  # once into the object store, read by every actor
-        fragments = self._all("play", weights, n_steps)
+        self._gather_ahead()
+        fragments, self._ahead = self._ahead, None
+        if fragments is None:
+            fragments = self._all("play", weights, n_steps)
+        if self.policy_lag:
+            for worker in self.workers:
+                worker.submit("play", weights, n_steps)
+            self._ahead_under_way = True
         join = lambda name: np.concatenate([getattr(f, name) for f in fragments], 1)  # noqa: E731
         return Fragment(_join_envs([f.new_obs for f in fragments], 1), join("actions"), join("values"),
                         join("log_probs"), join("action_masks") if acting.masking else None, join("rewards"),
@@ -238,13 +277,14 @@ class RolloutWorkers(VecEnv):
         raise TypeError("rollout workers play whole fragments (RolloutWorkers.play)")
 
     def close(self) -> None:
-        """End every worker (they may finish the fragments under way within :data:`CLOSE_TIMEOUT` s in all), and
-        the Ray instance if this started it. Safe after an interrupt left a fragment half played."""
+        """End every worker (they may finish the fragments under way within :data:`CLOSE_TIMEOUT` s in all, but
+        fragments played ahead, which no update will read, are cut short), and the Ray instance if this started
+        it. Safe after an interrupt left a fragment half played."""
         if self.closed:
             return
         for worker in self.workers:
             worker.ask_to_close()
-        deadline = time.monotonic() + CLOSE_TIMEOUT
+        deadline = time.monotonic() + (0.0 if self._ahead_under_way else CLOSE_TIMEOUT)
         for worker in self.workers:
             worker.close(max(0.0, deadline - time.monotonic()))
         if self._started_ray:

@@ -25,7 +25,7 @@ RUN_FILES = ("config.yaml", "model.zip", "training.yaml", "checkpoints", "eval",
 #: The fields of a configuration that a resumed run may change: its budget, how its envs run, its
 #: evaluation and checkpoint schedules. Any other (algorithm, policy, hyperparameters, env id and
 #: options, seed) would make the rest of the run another run than its model's and its ``config.yaml``.
-RESUMABLE_CHANGES = ("total_timesteps", "n_envs", "vec_env", "eval", "checkpoint_freq")
+RESUMABLE_CHANGES = ("total_timesteps", "n_envs", "vec_env", "policy_lag", "eval", "checkpoint_freq")
 
 
 class RunError(ValueError):

@@ -39,7 +39,14 @@ from ..concurrency.parallel import one_kernel_thread
 from ..experiments.loop_order import LoopOrderInfo
 from ..inputs.paths import write_atomically, write_text_atomically
 from .callbacks import NonFiniteError, StopOnNonFinite, check_weights, eval_callback_class
-from .config import AgentConfig, algorithm_class, load_agent_config, policy_argument, sb3_policy_kwargs
+from .config import (
+    AgentConfig,
+    algorithm_class,
+    load_agent_config,
+    policy_argument,
+    rollout_workers,
+    sb3_policy_kwargs,
+)
 from .model_files import load_model_file
 from .records import read_training_record
 from .run_folder import (
@@ -115,11 +122,12 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, e
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
 
     kwargs = config.eval_env_kwargs if evaluation else config.env_kwargs
-    if _rollout_workers(n_envs, vec_env):
+    if rollout_workers(n_envs, vec_env):
         from .rollout_workers import RolloutWorkers
 
         return RolloutWorkers(partial(make_agent_env, config.env_id, kwargs, vec_worker=True), n_envs, seed,
-                              on_ray=vec_env == "ray_workers", ray_address=ray_address)
+                              on_ray=vec_env == "ray_workers", ray_address=ray_address,
+                              policy_lag=0 if evaluation else config.policy_lag)
     if vec_env == "ray":
         from .ray_vec_env import RayVecEnv
 
@@ -133,11 +141,6 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, e
 def _subprocesses(n_envs: int, vec_env: str) -> bool:
     """Whether :func:`make_vec_env` runs the envs in other processes (subprocesses or Ray actors)."""
     return vec_env in ("ray", "ray_workers") or (vec_env in ("subproc", "workers") and n_envs > 1)
-
-
-def _rollout_workers(n_envs: int, vec_env: str) -> bool:
-    """Whether :func:`make_vec_env` runs the envs in rollout workers (one env in this process needs none)."""
-    return vec_env == "ray_workers" or (vec_env == "workers" and n_envs > 1)
 
 
 def _handles_ctrl_c() -> bool:
