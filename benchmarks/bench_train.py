@@ -2,7 +2,7 @@
 time goes, and the efficiency to expect on more cores.
 
     python benchmarks/bench_train.py [--config agents/ppo_plans_emmi.yaml] [--timesteps N] [--n-envs W]
-                                  [--vec-env workers|subproc|dummy] [--single N] [--out DIR]
+                                  [--vec-env workers|subproc|dummy] [--policy-lag 0|1] [--single N] [--out DIR]
 
 1. **One worker alone**: a rollout worker in a process of its own (kernels and torch on one thread,
    as in training) plays the first ``--single`` decisions (default ``n_steps``) of each env of
@@ -25,6 +25,12 @@ time goes, and the efficiency to expect on more cores.
      on the ``W n`` decisions, taking ``u W n``::
 
          efficiency(W) = n m / (E[max_k T_k] + u W n)
+
+   - rollout workers with ``policy_lag: 1``: the workers play the next fragments while the learner
+     updates, so a round lasts the longer of the slowest fragment and the update; the update's CPU
+     time is taken from the workers' cores (``u n`` on each of ``W``)::
+
+         efficiency(W) = n m / max(E[max_k T_k] + u n, u W n)
 
    - a synchronous vector env (one wait per decision): every step waits for the slowest of
      ``W`` decisions, and the learner's share is the same ``u`` per decision::
@@ -101,7 +107,9 @@ def expected_max(times: np.ndarray, workers: int, steps: int, rng, draws: int = 
 def predicted_efficiency(times: np.ndarray, workers: int, n_steps: int, learner_per_decision: float) -> dict:
     """The efficiency models of the module docstring at ``workers`` workers."""
     rng, m, u = np.random.default_rng(0), float(times.mean()), learner_per_decision
-    return {"rollout workers": n_steps * m / (expected_max(times, workers, n_steps, rng) + u * workers * n_steps),
+    slowest_fragment = expected_max(times, workers, n_steps, rng)
+    return {"rollout workers": n_steps * m / (slowest_fragment + u * workers * n_steps),
+            "with policy_lag 1": n_steps * m / max(slowest_fragment + u * n_steps, u * workers * n_steps),
             "synchronous vector env": m / (expected_max(times, workers, 1, rng) + u * workers)}
 
 
@@ -111,12 +119,14 @@ def main() -> None:
     parser.add_argument("--timesteps", type=arguments.integer(1), default=None, help="override total_timesteps")
     parser.add_argument("--n-envs", type=arguments.integer(1), default=None, help="override n_envs")
     parser.add_argument("--vec-env", default=None, help="override vec_env")
+    parser.add_argument("--policy-lag", type=arguments.integer(0, 1), default=None, help="override policy_lag")
     parser.add_argument("--single", type=arguments.integer(1), default=None,
                         help="decisions per env of the worker playing alone (default n_steps: the first fragments)")
     parser.add_argument("--out", default=None, help="run folder (default: a temporary one, removed after)")
     args = parser.parse_args()
     config = load_agent_config(args.config)
-    overrides = {"total_timesteps": args.timesteps, "n_envs": args.n_envs, "vec_env": args.vec_env}
+    overrides = {"total_timesteps": args.timesteps, "n_envs": args.n_envs, "vec_env": args.vec_env,
+                 "policy_lag": args.policy_lag}
     config = replace(config, **{k: v for k, v in overrides.items() if v is not None})
 
     n_steps = config.hyperparameters.get("n_steps", 2048)
@@ -137,7 +147,8 @@ def main() -> None:
     wall, decisions, workers = result.wall_seconds, result.timesteps, config.n_envs
     waiting = SPENT["waiting for the envs"]
     rate = decisions / wall
-    print(f"{config.algorithm} on {config.env_id}, {workers} env(s) ({config.vec_env}), {decisions} decisions "
+    print(f"{config.algorithm} on {config.env_id}, {workers} env(s) ({config.vec_env}"
+          f"{', policy_lag 1' if config.policy_lag else ''}), {decisions} decisions "
           f"in {wall:.1f} s: {rate:.2f} decisions/s")
     print(f"  one worker alone: {single_rate:.2f} decisions/s ({len(single)} decisions; per decision median "
           f"{np.median(single):.3f} s, p90 {np.quantile(single, 0.9):.3f} s, max {single.max():.3f} s)")

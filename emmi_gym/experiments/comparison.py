@@ -188,9 +188,10 @@ def markdown_table(rows: list[dict], policy: str, baseline: str, title: str) -> 
     return "\n".join(lines)
 
 
-def plot_pair(rows: list[dict], path) -> None:
-    """The expected maps of one (world, seed)'s episodes side by side, with the oracle map and true paths;
-    where a row kept its steps, the revisit targets it chose are marked (where it went back)."""
+def plot_pair(rows: list[dict], path, columns: int | None = None) -> None:
+    """The expected maps of one (world, seed)'s episodes side by side (``columns`` panels a row; default all
+    in one), with the oracle map and true paths; where a row kept its steps, the revisit targets it chose
+    are marked (where it went back)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -201,8 +202,12 @@ def plot_pair(rows: list[dict], path) -> None:
         (f"{r['policy']}: oracle acc. {r['oracle_accuracy']:.3f}, walls {r['wall_consistency']:.3f}, "
          f"ATE {r['ate']:.2f} m", r["expected_map"], r["true_path"],
          [s["target_xy"] for s in r.get("steps", []) if s["target_kind"] == "revisit"]) for r in rows]
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.6))
-    for ax, (title, grid, path_xy, revisits) in zip(axes, panels, strict=False):
+    columns = min(columns or len(panels), len(panels))
+    lines = -(-len(panels) // columns)
+    fig, axes = plt.subplots(lines, columns, figsize=(5.5 * columns, 4.6 * lines), squeeze=False)
+    for ax in axes.flat[len(panels):]:
+        ax.set_axis_off()
+    for ax, (title, grid, path_xy, revisits) in zip(axes.flat, panels, strict=False):
         ax.imshow(1.0 - grid, cmap="gray", origin="lower", extent=rows[0]["extent"], vmin=0, vmax=1)
         if path_xy is not None:
             ax.plot(path_xy[:, 0], path_xy[:, 1], color="tab:red", lw=0.6)
