@@ -148,4 +148,6 @@ def test_intervals_stay_within_what_a_measure_can_be():
     assert measure_interval([0.05, 0.3, 0.02], "ate")[1] == 0.0
     _, low, high, _ = difference_interval([-1.0, 0.0, 0.0], "completed")
     assert -1.0 <= low and high <= 1.0
+    share, low, high, n = measure_interval([0.45, 0.5, 0.6], "closed_loop_first")  # each agent's share
+    assert (share, n) == (pytest.approx(0.5167, abs=1e-4), 3) and 0.0 <= low < share < high <= 1.0
 

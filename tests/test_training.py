@@ -388,6 +388,27 @@ def _tiny_benchmark(tmp_path, **kwargs):
     return sorted(rows, key=lambda r: (r["variant"], r["seed"]))
 
 
+def test_benchmark_summary_pairs_each_agent_with_the_baselines_on_the_same_episodes():
+    """Two agents of one reward on episodes 10-12 beside a baseline: the summary's share of episodes that closed
+    the loop first is the agents' mean share (not the share of agents with any), and the paired table gives
+    each agent's mean episode-by-episode difference, averaged over the agents."""
+    from emmi_gym.training.benchmark import markdown, paired_with, summary
+
+    def row(kind, variant, seed, episode, ate, first):
+        return {"kind": kind, "variant": variant, "seed": seed, "episode_seed": episode, "ate": ate,
+                "oracle_accuracy": 0.7, "sim_steps": 1000.0 + episode, LOOP_ORDER_KEY: first}
+
+    rows = [row("baseline", "explore_first", 0, e, 0.5 + 0.1 * (e - 10), 0.0) for e in (10, 11, 12)]
+    rows += [row("agent", "emmi", 0, e, 0.4 + 0.1 * (e - 10), float(e == 10)) for e in (10, 11, 12)]
+    rows += [row("agent", "emmi", 1, e, 0.2 + 0.1 * (e - 10), float(e != 12)) for e in (12, 11, 10)]
+    share, low, high, n = summary(rows)["emmi"][LOOP_ORDER_KEY]
+    assert (share, n) == (pytest.approx(0.5), 2) and low < 0.5 < high
+    paired = paired_with(rows, "explore_first")["emmi"]
+    assert paired["ate"][0] == pytest.approx(-0.2) and paired["ate"][3] == 2
+    assert paired["sim_steps"][:2] == (pytest.approx(0.0), pytest.approx(0.0))
+    assert "| emmi - explore_first | -0.200 [" in markdown(rows, "t")
+
+
 def test_benchmark_refuses_waypoint_baselines_in_velocity_mode(tmp_path):
     config = parse_agent_config(config_dict("PPO"))
     with pytest.raises(ValueError, match="choose waypoint targets"):

@@ -55,8 +55,11 @@ def proportion_interval(values, confidence: float = CONFIDENCE) -> tuple[float, 
 
 
 def measure_interval(values, measure: str, confidence: float = CONFIDENCE) -> tuple[float, float, float, int]:
-    """The interval of ``measure`` over runs: Wilson for proportions, else t clipped to :data:`RANGES`."""
-    if measure in PROPORTIONS:
+    """The interval of ``measure`` over runs: Wilson for a proportion given as successes (every value 0 or
+    1), else t clipped to :data:`RANGES` (a share per run, such as each agent's share of its episodes, is
+    a mean like any other)."""
+    x = np.asarray(values, dtype=float)
+    if measure in PROPORTIONS and np.all((x == 0.0) | (x == 1.0) | ~np.isfinite(x)):
         return proportion_interval(values, confidence)
     return mean_interval(values, confidence, RANGES.get(measure, (-math.inf, math.inf)))
 

@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 from ..concurrency.parallel import run_in_processes
 from ..concurrency.ray_cluster import connect_ray
 from ..experiments.episodes import PolicyActor, nanmean, play_episodes
-from ..experiments.intervals import measure_interval
+from ..experiments.intervals import difference_interval, measure_interval
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
 from ..inputs.paths import write_atomically, write_text_atomically
@@ -196,48 +196,93 @@ def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes:
     return sorted(results, key=lambda r: (r["job"].kind, r["job"].variant, r["job"].seed))
 
 
-def summary(results: list[dict]) -> dict[str, dict[str, tuple]]:
-    """Per variant and column: mean [95% interval]. For trained variants each agent's episode mean is
-    one sample (the interval is over training seeds); for a baseline, each episode is."""
+def episode_rows(results: list[dict]) -> list[dict]:
+    """Every evaluation episode of the jobs' ``results``, as ``benchmark_episodes.csv`` holds them."""
+    return [row for r in results for row in r["rows"]]
+
+
+def _agent_means(rows: list[dict], column: str, value=lambda row, column: row.get(column, math.nan)) -> list[float]:
+    """Each agent's (training seed's) mean of ``value(row, column)`` over its episode ``rows``."""
+    seeds = dict.fromkeys(row["seed"] for row in rows)
+    return [nanmean([value(row, column) for row in rows if row["seed"] == seed]) for seed in seeds]
+
+
+def summary(rows: list[dict]) -> dict[str, dict[str, tuple]]:
+    """Per variant and column of the episode ``rows`` (as ``benchmark_episodes.csv`` holds them): mean [95%
+    interval]. For trained variants each agent's episode mean is one sample (the interval is over training
+    seeds); for a baseline, each episode is."""
     table = {}
-    for variant in dict.fromkeys(r["job"].variant for r in results):
-        own = [r for r in results if r["job"].variant == variant]
-        entry = {}
-        for column in TABLE_COLUMNS:
-            if own[0]["job"].kind == "agent":
-                samples = [nanmean([row.get(column, math.nan) for row in r["rows"]]) for r in own]
-            else:
-                samples = [row.get(column, math.nan) for r in own for row in r["rows"]]
-            entry[column] = measure_interval(samples, column)
-        entry["agents"] = len(own) if own[0]["job"].kind == "agent" else 0
+    for variant in dict.fromkeys(row["variant"] for row in rows):
+        own = [row for row in rows if row["variant"] == variant]
+        agent = own[0]["kind"] == "agent"
+        entry = {column: measure_interval(_agent_means(own, column) if agent else
+                                          [row.get(column, math.nan) for row in own], column)
+                 for column in TABLE_COLUMNS}
+        entry["agents"] = len({row["seed"] for row in own}) if agent else 0
         table[variant] = entry
+    return table
+
+
+#: Columns of the paired comparison of each trained variant with each scripted baseline.
+PAIRED_COLUMNS = ("ate", "oracle_accuracy", "sim_steps", LOOP_ORDER_KEY)
+
+
+def paired_with(rows: list[dict], baseline: str) -> dict[str, dict[str, tuple]]:
+    """Each trained variant minus the scripted ``baseline`` on the same held-out episodes: each agent's mean
+    of its paired differences (episode by episode) is one sample; mean [95% t-interval] over the agents."""
+    theirs = {row["episode_seed"]: row for row in rows if row["kind"] == "baseline" and row["variant"] == baseline}
+
+    def difference(row, column):
+        other = theirs.get(row["episode_seed"])
+        return math.nan if other is None else row.get(column, math.nan) - other.get(column, math.nan)
+
+    table = {}
+    for variant in dict.fromkeys(row["variant"] for row in rows if row["kind"] == "agent"):
+        own = [row for row in rows if row["variant"] == variant]
+        table[variant] = {column: difference_interval(_agent_means(own, column, difference), column)
+                          for column in PAIRED_COLUMNS}
     return table
 
 
 def measured_columns(table: dict, columns=tuple(TABLE_COLUMNS)) -> list[str]:
     """The ``columns`` that some variant of a :func:`summary` has a value for (the loop order only on
-    ``LoopCorridor-v0``, the revisit share only in waypoint mode)."""
+    the loop worlds, the revisit share only in waypoint mode)."""
     return [c for c in columns if any(entry[c][3] > 0 for entry in table.values())]
 
 
-def markdown(results: list[dict], header: str) -> str:
-    table = summary(results)
+def _cell(interval: tuple, column: str, signed: bool = False) -> str:
+    mean, low, high, n = interval
+    digits = 0 if column in ("sim_steps_to_target", "sim_steps") else 3
+    sign = "+" if signed else ""
+    if n == 0:
+        return "n/a"
+    if n == 1:  # one agent: no interval
+        return f"{mean:{sign}.{digits}f} (n=1)"
+    return f"{mean:{sign}.{digits}f} [{low:{sign}.{digits}f}, {high:{sign}.{digits}f}] (n={n})"
+
+
+def markdown(rows: list[dict], header: str) -> str:
+    """The benchmark's summary of its episode ``rows``: each variant's means, then, per scripted baseline,
+    each trained variant's paired differences with it."""
+    table = summary(rows)
     columns = measured_columns(table)
     lines = [header, "", "| variant | " + " | ".join(TABLE_COLUMNS[c] for c in columns) + " |",
              "| --- |" + " --- |" * len(columns)]
     for variant, entry in table.items():
         name = f"{variant} ({entry['agents']} agents)" if entry["agents"] else f"{variant} (scripted)"
-        cells = []
-        for column in columns:
-            mean, low, high, n = entry[column]
-            digits = 0 if column in ("sim_steps_to_target", "sim_steps") else 3
-            if n == 0:
-                cells.append("n/a")
-            elif n == 1:  # one agent: no interval
-                cells.append(f"{mean:.{digits}f} (n=1)")
-            else:
-                cells.append(f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}] (n={n})")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append(f"| {name} | " + " | ".join(_cell(entry[column], column) for column in columns) + " |")
+    for baseline in dict.fromkeys(row["variant"] for row in rows if row["kind"] == "baseline"):
+        paired = paired_with(rows, baseline)
+        if not paired:
+            continue
+        shown = [c for c in PAIRED_COLUMNS if any(entry[c][3] > 0 for entry in paired.values())]
+        lines += ["", f"Paired with {baseline} on the same episodes (agent minus {baseline}; mean [95% "
+                      f"t-interval] over the agents of each agent's mean difference):", "",
+                  "| variant | " + " | ".join(TABLE_COLUMNS[c] for c in shown) + " |",
+                  "| --- |" + " --- |" * len(shown)]
+        for variant, entry in paired.items():
+            lines.append(f"| {variant} - {baseline} | " + " | ".join(_cell(entry[c], c, signed=True) for c in shown)
+                         + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -275,7 +320,7 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
     write_atomically(files["curves"], partial(fig.savefig, dpi=110))
     plt.close(fig)
 
-    table = summary(results)
+    table = summary(episode_rows(results))
     columns = measured_columns(table, ("oracle_accuracy", "wall_consistency", "map_accuracy", "ate", "coverage",
                                        "revisit_share", LOOP_ORDER_KEY))
     fig, axes = plt.subplots(1, len(columns), figsize=(3 * len(columns), 3.4))
@@ -299,7 +344,8 @@ def write_benchmark(results: list[dict], out_dir, header: str) -> dict[str, Path
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"episodes": out / "benchmark_episodes.csv", "summary": out / "benchmark_summary.md"}
-    write_csv(files["episodes"], [row for r in results for row in r["rows"]])
-    write_text_atomically(files["summary"], markdown(results, header))
+    rows = episode_rows(results)
+    write_csv(files["episodes"], rows)
+    write_text_atomically(files["summary"], markdown(rows, header))
     files.update(plot(results, out))
     return files
