@@ -82,7 +82,7 @@ def test_each_shipped_agent_loads_in_one_line_and_picks_a_valid_target(name):
 
 
 def test_the_package_ships_the_reference_agents():
-    assert {"loop_corridor_emmi", "explore_plans_emmi"} <= set(pretrained.names())
+    assert {"loop_corridor_emmi", "loop_order_emmi", "explore_plans_emmi"} <= set(pretrained.names())
 
 
 def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path, capsys):
