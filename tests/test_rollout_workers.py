@@ -135,9 +135,11 @@ def ray():
     ray.shutdown()
 
 
-def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray):
+@pytest.mark.parametrize("policy_lag", [0, 1])
+def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray, policy_lag):
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
-    same_rollouts(collect(agent(MASKED), "workers", 2)[1], collect(agent(MASKED), "ray_workers", 2)[1])
+    data = agent(MASKED, policy_lag=policy_lag)
+    same_rollouts(collect(data, "workers", 3)[1], collect(data, "ray_workers", 3)[1])
 
 
 def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray):
