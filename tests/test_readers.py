@@ -84,13 +84,27 @@ def test_learning_curves_checks_baselines_and_names_the_file_it_wrote(tmp_path, 
     (tmp_path / "other.csv").write_text("policy," + MEASURES.split(",", 1)[1] + "agent,0.5,0.2,100,0.4\n")
     err = one_line_error(capsys, emmi_gym, ["learning-curves", str(tmp_path), "--out", str(tmp_path / "c"),
                                                          "--baselines-csv", str(tmp_path / "other.csv")])
-    assert "field 'policy': expected episodes of at least one of ['frontier', 'active_loop_closing', 'random'], " \
-           "got ['agent']" in err
+    assert "field 'policy': expected episodes of at least one of ['frontier', 'active_loop_closing', 'random', " \
+           "'close_loop_first', 'explore_first'], got ['agent']" in err
     (tmp_path / "episodes.csv").write_text("policy," + MEASURES.split(",", 1)[1] + "frontier,0.5,0.2,100,0.4\n")
     assert emmi_gym(["learning-curves", f"{tmp_path}=run", "--out", str(tmp_path / "c"), "--baselines-csv",
                                  str(tmp_path / "episodes.csv")]) == 0
     assert capsys.readouterr().out.strip() == f"wrote {tmp_path / 'c.png'}"
     assert (tmp_path / "c.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_learning_curves_read_the_loop_order_where_the_files_have_it(tmp_path):
+    from emmi_gym.training.learning_curves import read_baselines, read_curve
+
+    (tmp_path / "curve.csv").write_text(MEASURES.rstrip("\n") + ",closed_loop_first\n8,0.5,0.2,100,0.4,0.25\n")
+    (tmp_path / "episodes.csv").write_text("variant," + MEASURES.split(",", 1)[1].rstrip("\n") + ",closed_loop_first\n"
+                                           "close_loop_first,0.5,0.2,100,0.4,1.0\nexplore_first,0.5,0.2,100,0.4,\n")
+    assert read_curve(tmp_path / "curve.csv")["closed_loop_first"].tolist() == [0.25]
+    (tmp_path / "plain.csv").write_text(CURVE)
+    assert "closed_loop_first" not in read_curve(tmp_path / "plain.csv")
+    means = read_baselines(tmp_path / "episodes.csv")
+    assert means["close_loop_first"]["closed_loop_first"] == 1.0
+    assert np.isnan(means["explore_first"]["closed_loop_first"])
 
 
 def test_learning_curves_checks_its_output_and_run_folders_first(tmp_path, capsys):

@@ -26,11 +26,13 @@ class CsvFileError(FieldError):
     """A CSV file is not what the tool reading it needs; names the file, the line or column, and what was expected."""
 
 
-def read_csv_file(path, what: str, required: Iterable[str] = (), numeric: Iterable[str] = ()) -> list[dict]:
+def read_csv_file(path, what: str, required: Iterable[str] = (), numeric: Iterable[str] = (),
+                  optional_numeric: Iterable[str] = ()) -> list[dict]:
     """The rows of the CSV file ``path`` (``what`` names it in messages: "learning curve"), each a dict of
-    column -> text, the columns ``numeric`` as floats (NaN for an empty cell): :class:`CsvFileError` naming
-    the file unless it is a bounded UTF-8 CSV whose header holds every column of ``required`` and
-    ``numeric``, with at least one row and as many fields on every line as the header names."""
+    column -> text, the columns ``numeric`` (and those of ``optional_numeric`` that the header names) as
+    floats (NaN for an empty cell): :class:`CsvFileError` naming the file unless it is a bounded UTF-8 CSV
+    whose header holds every column of ``required`` and ``numeric``, with at least one row and as many
+    fields on every line as the header names."""
     text = read_text_file(path, what, MAX_CSV_BYTES, CsvFileError)
     source = str(path)
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
@@ -44,6 +46,7 @@ def read_csv_file(path, what: str, required: Iterable[str] = (), numeric: Iterab
         if missing:
             raise CsvFileError(source, "", f"a {what} with the columns {missing} (its header names "
                                f"{header[:12]}{' ...' if len(header) > 12 else ''})")
+        numeric += tuple(column for column in optional_numeric if column in header and column not in numeric)
         rows = []
         for fields in reader:
             if not fields:  # a blank line (csv.DictReader skips them too)

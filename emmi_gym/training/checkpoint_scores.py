@@ -9,10 +9,12 @@ on as many episodes as wanted (``emmi-gym score-checkpoints``, :func:`score_runs
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from ..experiments.comparison import compare_on, episodes_on
 from ..experiments.episodes import nanmean
+from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
 from ..inputs import arguments
 from ..inputs.paths import file_kind, output_folder
@@ -21,7 +23,7 @@ from .train import checkpoints, is_whole_checkpoint, load_run_config
 
 #: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
 MEASURES = ("return", "oracle_accuracy", "wall_consistency", "ate", "map_accuracy", "coverage", "reached_target",
-            "sim_steps_to_target", "revisit_share", "sim_steps", "decisions")
+            "sim_steps_to_target", "revisit_share", LOOP_ORDER_KEY, "sim_steps", "decisions")
 
 
 def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = EVALUATION_SEED, *,
@@ -42,7 +44,7 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
     curve = []
     for decisions, _ in found:
         mine = [r for r in rows if r["policy"] == f"model_{decisions}"]
-        curve.append({"timesteps": decisions, **{k: nanmean([r[k] for r in mine]) for k in MEASURES}})
+        curve.append({"timesteps": decisions, **{k: nanmean([r.get(k, math.nan) for r in mine]) for k in MEASURES}})
     return curve, rows
 
 

@@ -7,7 +7,8 @@
         runs/bench/runs/pose_entropy_seed0=pose_entropy runs/bench/runs/pose_entropy_seed1=pose_entropy --out c.png
 
 Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``; ``--scores
-checkpoint_scores.csv``: the file of ``emmi-gym score-checkpoints``) gives one line per measure;
+checkpoint_scores.csv``: the file of ``emmi-gym score-checkpoints``) gives one line per measure
+(and, where every file has it, the share of episodes that closed the loop first);
 runs given the same LABEL (the seeds of one configuration) are drawn as their mean over the
 evaluations they all reached, the band spanning them; ``--baselines-csv`` (``episodes.csv`` of
 ``emmi-gym evaluate --out``, or ``benchmark_episodes.csv`` of ``emmi-gym benchmark``) draws each
@@ -25,20 +26,25 @@ from pathlib import Path
 
 import numpy as np
 
+from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..inputs.csv_files import CsvFileError, read_csv_file
 from ..inputs.paths import output_file, write_atomically
+from ..policies import POLICY_NAMES
 
 MEASURES = {"oracle_accuracy": "accuracy against the oracle map", "ate": "ATE (m)",
             "sim_steps": "simulator steps", "coverage": "coverage"}
-BASELINES = ("frontier", "active_loop_closing", "random")
+#: Drawn too where every file has a finite value of it (the loop worlds).
+LOOP_ORDER = {LOOP_ORDER_KEY: "closed the loop first"}
+BASELINES = POLICY_NAMES
 
 
 def read_curve(path) -> dict[str, np.ndarray]:
     """``timesteps`` and each of :data:`MEASURES` of a run's evaluations file, as arrays: a :class:`CsvFileError`
     naming the file unless every row has a finite ``timesteps`` and each measure a finite value somewhere."""
     rows = read_csv_file(path, "learning curve (eval_ground_truth.csv or checkpoint_scores.csv)",
-                         numeric=("timesteps", *MEASURES))
-    curve = {column: np.array([row[column] for row in rows]) for column in ("timesteps", *MEASURES)}
+                         numeric=("timesteps", *MEASURES), optional_numeric=LOOP_ORDER)
+    curve = {column: np.array([row[column] for row in rows]) for column in ("timesteps", *MEASURES, *LOOP_ORDER)
+             if column in rows[0]}
     if not np.isfinite(curve["timesteps"]).all():
         raise CsvFileError(str(path), "timesteps", "a number of decisions on every row", "an empty or non-finite cell")
     _check_finite(path, curve)
@@ -49,7 +55,8 @@ def read_baselines(path) -> dict[str, dict[str, float]]:
     """Each of the :data:`BASELINES` in an episodes file: its mean of each of :data:`MEASURES` over its episodes
     (``policy`` or, in the benchmark's, ``variant`` names it); a :class:`CsvFileError` naming the file
     unless it holds episodes of at least one of them, each measure finite in some."""
-    rows = read_csv_file(path, "episodes file (episodes.csv or benchmark_episodes.csv)", numeric=tuple(MEASURES))
+    rows = read_csv_file(path, "episodes file (episodes.csv or benchmark_episodes.csv)", numeric=tuple(MEASURES),
+                         optional_numeric=LOOP_ORDER)
     column = "policy" if "policy" in rows[0] else "variant"
     if column not in rows[0]:
         raise CsvFileError(str(path), "", "an episodes file with a 'policy' (or 'variant') column naming each "
@@ -58,9 +65,11 @@ def read_baselines(path) -> dict[str, dict[str, float]]:
     for policy in BASELINES:
         mine = [row for row in rows if row[column] == policy]
         if mine:
-            values = {measure: np.array([row[measure] for row in mine]) for measure in MEASURES}
+            values = {measure: np.array([row[measure] for row in mine]) for measure in (*MEASURES, *LOOP_ORDER)
+                      if measure in mine[0]}
             _check_finite(f"{path} ({policy})", values)
-            means[policy] = {measure: float(np.nanmean(value)) for measure, value in values.items()}
+            means[policy] = {measure: float(np.nanmean(value)) if np.isfinite(value).any() else math.nan
+                             for measure, value in values.items()}
     if not means:
         found = sorted({row[column] for row in rows})
         raise CsvFileError(str(path), column, f"episodes of at least one of {list(BASELINES)}", found)
@@ -97,23 +106,26 @@ def draw(groups: dict[str, list[dict]], baselines: dict[str, dict[str, float]], 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(MEASURES), figsize=(4 * len(MEASURES), 3.4))
+    curves = [curve for runs in groups.values() for curve in runs]
+    measures = {**MEASURES, **{measure: label for measure, label in LOOP_ORDER.items()
+                               if all(measure in curve and np.isfinite(curve[measure]).any() for curve in curves)}}
+    fig, axes = plt.subplots(1, len(measures), figsize=(4 * len(measures), 3.4))
     for k, (label, runs) in enumerate(groups.items()):
         length = min(len(curve["timesteps"]) for curve in runs)
         steps = runs[0]["timesteps"][:length].astype(np.int64)
-        for ax, measure in zip(axes, MEASURES, strict=True):
+        for ax, measure in zip(axes, measures, strict=True):
             values = np.array([curve[measure][:length] for curve in runs])
             name = label if len(runs) == 1 else f"{label} ({len(runs)} runs)"
             ax.plot(steps, values.mean(axis=0), marker="o", ms=3, color=f"C{k}", label=name)
             if len(runs) > 1:
                 ax.fill_between(steps, values.min(axis=0), values.max(axis=0), color=f"C{k}", alpha=0.15)
     for k, (policy, means) in enumerate(baselines.items()):
-        for ax, measure in zip(axes, MEASURES, strict=True):
-            if math.isfinite(means[measure]):
+        for ax, measure in zip(axes, measures, strict=True):
+            if math.isfinite(means.get(measure, math.nan)):
                 ax.axhline(means[measure], color=f"C{len(groups) + k}", ls="--", lw=1, label=policy)
-    for ax, measure in zip(axes, MEASURES, strict=True):
+    for ax, measure in zip(axes, measures, strict=True):
         ax.set_xlabel("decisions trained")
-        ax.set_title(f"held-out: {MEASURES[measure]}", fontsize=9)
+        ax.set_title(f"held-out: {measures[measure]}", fontsize=9)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
     fig.tight_layout()
