@@ -204,7 +204,9 @@ def plot_pair(rows: list[dict], path, columns: int | None = None) -> None:
          [s["target_xy"] for s in r.get("steps", []) if s["target_kind"] == "revisit"]) for r in rows]
     columns = min(columns or len(panels), len(panels))
     lines = -(-len(panels) // columns)
-    fig, axes = plt.subplots(lines, columns, figsize=(5.5 * columns, 4.6 * lines), squeeze=False)
+    xmin, xmax, ymin, ymax = rows[0]["extent"]
+    height = 5.5 * (ymax - ymin) / (xmax - xmin) + 0.6  # the map's aspect, and the panel's title
+    fig, axes = plt.subplots(lines, columns, figsize=(5.5 * columns, height * lines + 0.4), squeeze=False)
     for ax in axes.flat[len(panels):]:
         ax.set_axis_off()
     for ax, (title, grid, path_xy, revisits) in zip(axes.flat, panels, strict=False):
