@@ -110,7 +110,9 @@ def information_and_observed(p_flat: np.ndarray, observed_tol: float) -> tuple[f
     info, n_obs = 0.0, 0
     for start in range(0, p_flat.size, INFORMATION_BLOCK):
         n = _kernels.beyond_band(p_flat[start:start + INFORMATION_BLOCK], halfwidth, p, q)
-        with np.errstate(divide="ignore"):
+        # log(0) is -inf and a probability a rounding error beyond [0, 1] gives NaN: information_sum reads
+        # the logarithms of cells with 0 < p < 1 only
+        with np.errstate(divide="ignore", invalid="ignore"):
             np.log(p[:n], out=log_p[:n])
             np.log(q[:n], out=log_q[:n])
         block_info, block_obs = _kernels.information_sum(p[:n], q[:n], log_p[:n], log_q[:n], max_bits)
