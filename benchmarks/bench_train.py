@@ -63,7 +63,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 from emmi_gym.concurrency.parallel import ProcessActor
 from emmi_gym.inputs import arguments
 from emmi_gym.training import callbacks
-from emmi_gym.training.config import algorithm_class, load_agent_config
+from emmi_gym.training.config import algorithm_class, load_agent_config, rollout_workers
 from emmi_gym.training.rollout_workers import RolloutWorker, RolloutWorkers, acting_of, is_masked
 from emmi_gym.training.train import make_agent_env, model_of, set_torch_threads, train, training_torch_threads
 
@@ -128,6 +128,9 @@ def main() -> None:
     overrides = {"total_timesteps": args.timesteps, "n_envs": args.n_envs, "vec_env": args.vec_env,
                  "policy_lag": args.policy_lag}
     config = replace(config, **{k: v for k, v in overrides.items() if v is not None})
+    if config.policy_lag and not rollout_workers(config.n_envs, config.vec_env):
+        parser.error(f"--policy-lag 1 needs rollout workers (vec_env workers with n_envs > 1, or ray_workers), "
+                     f"not vec_env {config.vec_env} with n_envs {config.n_envs}")
 
     n_steps = config.hyperparameters.get("n_steps", 2048)
     single = single_thread_decision_seconds(config, args.single or n_steps)
