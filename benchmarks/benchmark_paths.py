@@ -2,11 +2,13 @@
 reward's agent and of each scripted policy on the same world and seed, their paths on their final maps
 (one panel each, after the oracle map), and what each did in that episode.
 
-    python benchmarks/loop_order_paths.py BENCHMARK_DIR --seed 1000100 \\
+    python benchmarks/benchmark_paths.py BENCHMARK_DIR [--seed S] \\
         [--agent-seed 0] [--baselines close_loop_first explore_first frontier] [--out paths.png]
 
 ``BENCHMARK_DIR`` is the ``--out`` of ``emmi-gym benchmark``: the agent of each reward is
-``runs/<reward>_seed<agent-seed>/model.zip``. Every policy plays the env of the emmi agent's held-out
+``runs/<reward>_seed<agent-seed>/model.zip``; the episode is seeded ``S`` (default: the benchmark's
+first held-out episode, from its ``benchmark_episodes.csv``). It serves any benchmark whose env plays
+the scripted policies (``LoopCorridor-v0``, ``LoopOrder-v0``). Every policy plays the env of the emmi agent's held-out
 evaluation (the reward changes what an agent learns, not what an episode shows it), so the episodes
 share the world, the start and the random draws up to the first decision
 (:func:`emmi_gym.experiments.comparison.play_on_world`). The panels mark the revisit targets each
@@ -21,6 +23,7 @@ from pathlib import Path
 
 from emmi_gym.experiments.comparison import play_on_world, plot_pair
 from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
+from emmi_gym.experiments.report import read_csv
 from emmi_gym.inputs import arguments
 from emmi_gym.training.evaluate import TrainedAgent, comparison_settings, format_table
 from emmi_gym.training.train import load_run_config
@@ -36,19 +39,29 @@ def agents_of(benchmark: Path, agent_seed: int) -> dict[str, Path]:
     return models
 
 
+def first_held_out_seed(benchmark: Path) -> int:
+    """The seed of the first episode the benchmark's agents and scripted policies were evaluated on."""
+    episodes = benchmark / "benchmark_episodes.csv"
+    if not episodes.is_file():
+        raise SystemExit(f"{episodes}: not found (a finished benchmark's --out is expected); or give --seed")
+    return min(int(row["episode_seed"]) for row in read_csv(episodes))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("benchmark", type=Path, help="the --out folder of 'emmi-gym benchmark'")
-    parser.add_argument("--seed", type=arguments.SEED, default=1_000_100, help="the episode's seed (held out)")
+    parser.add_argument("--seed", type=arguments.SEED, default=None,
+                        help="the episode's seed (default: the benchmark's first held-out episode)")
     parser.add_argument("--agent-seed", type=arguments.SEED, default=0, help="which training seed's agents")
     parser.add_argument("--baselines", nargs="*", default=["close_loop_first", "explore_first", "frontier"])
-    parser.add_argument("--out", type=Path, default=Path("loop_order_paths.png"))
+    parser.add_argument("--out", type=Path, default=Path("benchmark_paths.png"))
     args = parser.parse_args()
     models = agents_of(args.benchmark, args.agent_seed)
+    seed = first_held_out_seed(args.benchmark) if args.seed is None else args.seed
     reference = models.get("emmi", next(iter(models.values())))
     settings, world = comparison_settings(load_run_config(reference))
     policies = [TrainedAgent(str(path), f"{reward} agent") for reward, path in models.items()] + args.baselines
-    rows = [play_on_world(world, args.seed, policy, settings, keep_maps=True, keep_steps=True) for policy in policies]
+    rows = [play_on_world(world, seed, policy, settings, keep_maps=True, keep_steps=True) for policy in policies]
     for row in rows:
         row["revisit_targets"] = sum(step["target_kind"] == "revisit" for step in row["steps"])
     print(format_table(rows, ["policy", LOOP_ORDER_KEY, "decisions", "revisit_targets", "sim_steps", "ate",
