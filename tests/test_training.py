@@ -14,7 +14,7 @@ from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
 from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
 from emmi_gym.training.evaluate import evaluate_model
-from emmi_gym.training.train import latest_checkpoint, make_agent_env, train, training_torch_threads
+from emmi_gym.training.train import checkpoints, latest_checkpoint, make_agent_env, train, training_torch_threads
 
 #: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.
 FAST_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 150}
@@ -112,6 +112,19 @@ def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     record = yaml.safe_load((tmp_path / "training.yaml").read_text())  # both parts' wall time
     assert record["timesteps"] == finished.timesteps
     assert record["wall_seconds"] == pytest.approx(stopped.wall_seconds + finished.wall_seconds, abs=0.5)
+
+
+def test_a_resumed_run_checkpoints_and_evaluates_on_the_schedule_of_an_uninterrupted_one(tmp_path, monkeypatch):
+    run_on = interrupt_training_at(monkeypatch, 40)
+    config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                            checkpoint_freq=32, eval={"freq": 32, "episodes": 1, "seed": 500}))
+    assert train(config, tmp_path, progress=False).interrupted
+    run_on()
+    train(config, tmp_path, resume=True, progress=False)
+    saved = {decisions for decisions, _ in checkpoints(tmp_path)}
+    assert {32, 64, 96} <= saved and saved <= {32, 40, 64, 96}, "every 32 decisions of the run, and the interruption"
+    with open(tmp_path / "eval_ground_truth.csv") as f:
+        assert [int(float(row["timesteps"])) for row in csv.DictReader(f)] == [32, 64, 96]
 
 
 @pytest.mark.parametrize("whole_group, vec_env", [(False, "subproc"), (True, "subproc"), (True, "workers")],

@@ -76,7 +76,24 @@ def check_weights(model, when: str) -> None:
         raise NonFiniteError(f"training stopped at decision {model.num_timesteps}: {when}, {bad}")
 
 
-class GroundTruthEvalMixin:
+class OnRunSchedule:
+    """For an SB3 callback that acts every ``freq`` calls (``n_calls % freq == 0``: checkpoints, periodic
+    evaluations): count the calls from the start of the run, not of this ``learn``, so that a resumed run
+    acts at the same decision counts as one never interrupted (SB3 counts from zero at each ``learn``: a
+    run stopped at 1140 decisions and resumed evaluated at 2140, 3140, ... instead of 2000, 3000).
+    ``run_origin``: the decisions of the model the run started from (0 for a fresh model; those of the
+    ``init_from`` model), subtracted from the model's count."""
+
+    def __init__(self, *args, run_origin: int = 0, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.run_origin = int(run_origin)
+
+    def _init_callback(self) -> None:
+        super()._init_callback()
+        self.n_calls = max(int(self.model.num_timesteps) - self.run_origin, 0) // max(int(self.model.n_envs), 1)
+
+
+class GroundTruthEvalMixin(OnRunSchedule):
     """For an SB3 ``EvalCallback``: every evaluation runs the same held-out episodes (the eval env is
     reseeded with ``eval_seed`` first) and logs the mean of each ground-truth measure at the
     episodes' ends as ``eval/<measure>`` (TensorBoard and stdout), appending them to

@@ -38,7 +38,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 from ..concurrency.parallel import one_kernel_thread
 from ..experiments.loop_order import LoopOrderInfo
 from ..inputs.paths import write_atomically, write_text_atomically
-from .callbacks import NonFiniteError, StopOnNonFinite, check_weights, eval_callback_class
+from .callbacks import NonFiniteError, OnRunSchedule, StopOnNonFinite, check_weights, eval_callback_class
 from .config import (
     AgentConfig,
     algorithm_class,
@@ -264,10 +264,11 @@ def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
                   if (m := _CHECKPOINT.search(p.name)))
 
 
-class AtomicCheckpointCallback(CheckpointCallback):
-    """SB3's checkpoints (same names and schedule), each written to a temporary file and renamed, only of
-    finite weights; ``on_save(decisions)`` is called once a checkpoint is written, before it is renamed
-    into place (the run's record then never lags behind its newest checkpoint)."""
+class AtomicCheckpointCallback(OnRunSchedule, CheckpointCallback):
+    """SB3's checkpoints (same names; the schedule counted from the run's start, :class:`OnRunSchedule`),
+    each written to a temporary file and renamed, only of finite weights; ``on_save(decisions)`` is called
+    once a checkpoint is written, before it is renamed into place (the run's record then never lags behind
+    its newest checkpoint)."""
 
     def __init__(self, *args, on_save=None, **kwargs):
         super().__init__(*args, **kwargs)
@@ -419,13 +420,14 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
     per_env = max(1, config.n_envs)
     checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoint_dir),
                                              name_prefix="model", save_replay_buffer=config.algorithm in OFF_POLICY,
-                                             on_save=record)
+                                             on_save=record, run_origin=start.init_decisions)
     callbacks = [StopOnNonFinite(), checkpointing]
     if eval_env is not None:
         callbacks.append(eval_callback_class(config.algorithm)(
             eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
             log_path=str(run_dir / "eval"), best_model_save_path=str(run_dir / "eval"), deterministic=True,
-            verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv"))
+            verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv",
+            run_origin=start.init_decisions))
     if config.discount_unit is not None:
         callbacks.append(SemiMarkovDiscounts(config.discount_unit))
     remaining = max(config.total_timesteps - first, 0)
