@@ -110,6 +110,16 @@ def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path,
                           progress=False)
     assert [r["ate"] for r in alone] == [r["ate"] for r in last]  # the same episodes as evaluate plays
 
+    data = dict(data, total_timesteps=12, checkpoint_freq=8)  # the last checkpoint 4 decisions before the end
+    train(parse_agent_config(data), tmp_path / "ends_later", progress=False)
+    assert main(["score-checkpoints", str(tmp_path / "ends_later"), "--episodes", "1", "--seed", "7",
+                 "--workers", "1"]) == 0
+    curve = read_csv(tmp_path / "ends_later" / "checkpoint_scores.csv")
+    assert [row["timesteps"] for row in curve] == [8, 12], "the final model ends the curve"
+    final = compare_model(tmp_path / "ends_later" / "model.zip", "final", episodes=1, seed=7, workers=1,
+                          progress=False)
+    assert curve[1]["ate"] == pytest.approx(final[0]["ate"])
+
     with pytest.raises(FileNotFoundError, match="run folder .*empty does not exist"):
         score_checkpoints(tmp_path / "empty", progress=False)
     (tmp_path / "empty").mkdir()

@@ -19,7 +19,7 @@ from ..experiments.report import write_csv
 from ..inputs import arguments
 from ..inputs.paths import file_kind, output_folder
 from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings, format_table
-from .train import checkpoints, is_whole_checkpoint, load_run_config
+from .train import checkpoints, is_whole_checkpoint, load_run_config, training_record
 
 #: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
 MEASURES = ("return", "oracle_accuracy", "wall_consistency", "ate", "map_accuracy", "coverage", "reached_target",
@@ -49,8 +49,10 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
 
 
 def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
-    """The whole checkpoints of the run folder ``run_dir`` (see :func:`score_checkpoints`), ``(decisions, path)``;
-    a ``FileNotFoundError`` that says which is missing, the folder or its checkpoints."""
+    """The whole checkpoints of the run folder ``run_dir`` (see :func:`score_checkpoints`), ``(decisions, path)``,
+    and its final ``model.zip`` where the run finished with more decisions than its last checkpoint (the curve's
+    end: a 3,000-decision budget ends at 3,072, and a resumed run's last checkpoint may lie 900 decisions
+    before its end); a ``FileNotFoundError`` that says which is missing, the folder or its checkpoints."""
     run_dir = Path(run_dir)
     if not run_dir.exists():
         raise FileNotFoundError(f"run folder {run_dir} does not exist")
@@ -58,6 +60,10 @@ def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
         raise FileNotFoundError(f"{run_dir}: expected a run folder of 'emmi-gym train', not "
                                 f"{file_kind(run_dir.stat().st_mode)}")
     found = [(decisions, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
+    final = run_dir / "model.zip"
+    finished_at = int((training_record(run_dir) or {}).get("timesteps", 0))
+    if final.is_file() and finished_at > (found[-1][0] if found else 0) and is_whole_checkpoint(final):
+        found.append((finished_at, final))
     if not found:
         raise FileNotFoundError(f"no checkpoint in {run_dir / 'checkpoints'}: was {run_dir} written by "
                                 "'emmi-gym train'?")
