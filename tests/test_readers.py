@@ -93,6 +93,25 @@ def test_learning_curves_checks_baselines_and_names_the_file_it_wrote(tmp_path, 
     assert (tmp_path / "c.png").read_bytes().startswith(b"\x89PNG")
 
 
+def test_learning_curves_draw_runs_of_one_label_at_their_mean_decision_counts(tmp_path, monkeypatch):
+    import matplotlib.axes
+
+    drawn = []
+    original = matplotlib.axes.Axes.plot
+    monkeypatch.setattr(matplotlib.axes.Axes, "plot",
+                        lambda ax, x, y, *a, **k: drawn.append((list(x), list(y))) or original(ax, x, y, *a, **k))
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "a" / "eval_ground_truth.csv").write_text(MEASURES + "1000,0.5,0.2,100,0.4\n2000,0.6,0.2,100,0.4\n"
+                                                          "3000,0.7,0.2,100,0.4\n3072,0.7,0.2,100,0.4\n")
+    (tmp_path / "b" / "eval_ground_truth.csv").write_text(MEASURES + "1140,0.7,0.2,100,0.4\n2140,0.8,0.2,100,0.4\n"
+                                                          "3060,0.9,0.2,100,0.4\n")  # resumed between rollouts
+    assert emmi_gym(["learning-curves", f"{tmp_path / 'a'}=emmi", f"{tmp_path / 'b'}=emmi",
+                     "--out", str(tmp_path / "c.png")]) == 0
+    steps, accuracy = drawn[0]  # the first measure's line
+    assert steps == pytest.approx([1070, 2070, 3030]) and accuracy == pytest.approx([0.6, 0.7, 0.8])
+
+
 def test_learning_curves_read_the_loop_order_where_the_files_have_it(tmp_path):
     from emmi_gym.training.learning_curves import read_baselines, read_curve
 

@@ -10,7 +10,8 @@ Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``; ``--
 checkpoint_scores.csv``: the file of ``emmi-gym score-checkpoints``) gives one line per measure
 (and, where every file has it, the share of episodes that closed the loop first);
 runs given the same LABEL (the seeds of one configuration) are drawn as their mean over the
-evaluations they all reached, the band spanning them; ``--baselines-csv`` (``episodes.csv`` of
+evaluations they all reached, at the mean of their decision counts (a resumed run's may differ), the
+band spanning them; ``--baselines-csv`` (``episodes.csv`` of
 ``emmi-gym evaluate --out``, or ``benchmark_episodes.csv`` of ``emmi-gym benchmark``) draws each
 scripted policy's mean there as a level line, for scale (its episodes are not the periodic
 evaluation's). Every file is read and checked (:func:`emmi_gym.inputs.csv_files.read_csv_file`: the
@@ -112,7 +113,8 @@ def draw(groups: dict[str, list[dict]], baselines: dict[str, dict[str, float]], 
     fig, axes = plt.subplots(1, len(measures), figsize=(4 * len(measures), 3.4))
     for k, (label, runs) in enumerate(groups.items()):
         length = min(len(curve["timesteps"]) for curve in runs)
-        steps = runs[0]["timesteps"][:length].astype(np.int64)
+        # runs resumed between rollouts score at their own counts (1140, 2140, ...): the mean run at the mean count
+        steps = np.mean([curve["timesteps"][:length] for curve in runs], axis=0)
         for ax, measure in zip(axes, measures, strict=True):
             values = np.array([curve[measure][:length] for curve in runs])
             name = label if len(runs) == 1 else f"{label} ({len(runs)} runs)"
