@@ -1,0 +1,56 @@
+"""What a benchmark's routes explain of its maps (emmi_gym.experiments.attribution)."""
+
+import numpy as np
+import pytest
+
+from emmi_gym.experiments.attribution import PREDICTORS, attribution, markdown
+
+
+def episodes(offsets: dict[str, float], worlds: int = 12, noise: float = 0.0, seed: int = 0) -> list[dict]:
+    """Episode rows as benchmark_episodes.csv holds them: every policy on every world, its ATE a world
+    effect plus known effects of the order, the revisits and the time, plus the policy's own offset."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for world in range(worlds):
+        world_effect = rng.uniform(0.2, 0.8)
+        for policy, offset in offsets.items():
+            closed, revisits, steps = float(rng.integers(0, 2)), rng.uniform(0, 0.5), rng.uniform(800, 1400)
+            ate = world_effect - 0.05 * closed - 0.2 * revisits + 0.01 * steps / 1000 + offset
+            rows.append({"episode_seed": 1000 + world, "kind": "agent" if policy == "emmi" else "baseline",
+                         "variant": policy, "ate": ate + noise * rng.normal(), "oracle_accuracy": 1.0 - ate,
+                         "closed_loop_first": closed, "revisit_share": revisits, "sim_steps": steps})
+    return rows
+
+
+def test_the_fit_recovers_the_effects_within_worlds_and_leaves_no_residual():
+    estimate, low, high, names, worlds = attribution(episodes({"emmi": 0.0, "a": 0.0, "b": 0.0}), "ate", 200)
+    assert worlds == 12 and names == ["emmi agents", "a", "b"]
+    np.testing.assert_allclose(estimate[:len(PREDICTORS)], [-0.05, -0.2, 0.01], atol=1e-9)
+    assert estimate[len(PREDICTORS)] == pytest.approx(1.0)
+    np.testing.assert_allclose(estimate[len(PREDICTORS) + 1:], 0.0, atol=1e-9)
+
+
+def test_a_policy_that_maps_better_than_its_route_explains_has_a_negative_residual():
+    estimate, low, high, names, _ = attribution(episodes({"emmi": -0.03, "a": 0.0, "b": 0.0}, noise=0.005), "ate",
+                                                500)
+    k = len(PREDICTORS) + 1
+    residual = dict(zip(names, zip(estimate[k:], high[k:], strict=True), strict=True))
+    mine, upper = residual["emmi agents"]
+    assert upper < 0, "the interval of the better policy's residual excludes 0"
+    others = np.mean([residual["a"][0], residual["b"][0]])
+    assert mine - others == pytest.approx(-0.03, abs=0.006)
+
+
+def test_the_bootstrap_is_reproducible_and_the_tables_name_every_policy():
+    rows = episodes({"emmi": -0.03, "explore_first": 0.0}, noise=0.01)
+    assert markdown(rows, 100) == markdown(rows, 100)
+    assert "residual of emmi agents" in markdown(rows, 100) and "residual of explore_first" in markdown(rows, 100)
+
+
+def test_rows_without_the_routes_are_refused_with_what_is_expected():
+    rows = [{"episode_seed": 1, "kind": "agent", "variant": "emmi", "ate": 0.3}]
+    with pytest.raises(ValueError, match="revisit_share.*benchmark_episodes.csv"):
+        attribution(rows, "ate", 100)
+    with pytest.raises(ValueError, match="closed_loop_first"):
+        unordered = [dict(row, closed_loop_first=np.nan, revisit_share=0.1, sim_steps=900.0) for row in rows]
+        attribution(unordered, "ate", 100)
