@@ -112,8 +112,10 @@ def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path,
 
     data = dict(data, total_timesteps=12, checkpoint_freq=8)  # the last checkpoint 4 decisions before the end
     train(parse_agent_config(data), tmp_path / "ends_later", progress=False)
+    capsys.readouterr()
     assert main(["score-checkpoints", str(tmp_path / "ends_later"), "--episodes", "1", "--seed", "7",
-                 "--workers", "1"]) == 0
+                 "--workers", "1", "--quiet"]) == 0
+    assert "episodes:" not in capsys.readouterr().err, "--quiet: no progress bar"
     curve = read_csv(tmp_path / "ends_later" / "checkpoint_scores.csv")
     assert [row["timesteps"] for row in curve] == [8, 12], "the final model ends the curve"
     final = compare_model(tmp_path / "ends_later" / "model.zip", "final", episodes=1, seed=7, workers=1,

@@ -84,7 +84,7 @@ def score_runs(args: argparse.Namespace) -> int:
         output_folder(run, "run folder")
     for run in args.runs:
         curve, rows = score_checkpoints(run, OWN_WORLD if args.world is None else args.world, args.episodes,
-                                        args.seed, workers=args.workers)
+                                        args.seed, workers=args.workers, progress=not args.quiet)
         write_csv(run / CURVE_FILE, curve)
         write_csv(run / EPISODES_FILE, rows)
         print(f"{run}: {len(curve)} checkpoints x {args.episodes} episodes: wrote {run / CURVE_FILE} and "
