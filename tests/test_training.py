@@ -451,6 +451,40 @@ def test_benchmark_command_trains_for_the_configurations_budget_by_default(tmp_p
         "total_timesteps"] == 16
 
 
+def test_a_benchmark_extended_to_a_larger_budget_and_stopped_early_trains_on_when_run_again(tmp_path):
+    path = tmp_path / "agent.yaml"
+    path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                               timesteps=16)))
+    argv = ["benchmark", "--config", str(path), "--rewards", "coverage", "--seeds", "1", "--episodes", "1",
+            "--baselines", "--workers", "1", "--out", str(tmp_path / "bench"), "--quiet"]
+    assert main(argv) == 0
+    run = tmp_path / "bench" / "runs" / "coverage_seed0"
+    # extended with --timesteps 32 and stopped at once: the run's configuration names the new budget, its model
+    # is still the old one's
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    (run / "config.yaml").write_text(yaml.safe_dump(dict(config, total_timesteps=32), sort_keys=False))
+    assert main([*argv, "--timesteps", "32"]) == 0
+    assert yaml.safe_load((run / "training.yaml").read_text())["timesteps"] == 32
+    assert "trained by an earlier run" not in (tmp_path / "bench" / "benchmark_summary.md").read_text()
+
+
+def test_saved_decisions_reads_a_model_s_count_and_names_a_file_without_one(tmp_path):
+    import zipfile
+
+    from emmi_gym.training.model_files import ModelFileError, saved_decisions
+
+    with zipfile.ZipFile(tmp_path / "model.zip", "w") as archive:
+        archive.writestr("data", '{"num_timesteps": 3072}')
+    assert saved_decisions(tmp_path / "model.zip") == 3072
+    with zipfile.ZipFile(tmp_path / "other.zip", "w") as archive:
+        archive.writestr("data", '{"policy_class": {}}')
+    with pytest.raises(ModelFileError, match=r"other.zip.*num_timesteps.*None"):
+        saved_decisions(tmp_path / "other.zip")
+    (tmp_path / "text.zip").write_text("not a zip")
+    with pytest.raises(ModelFileError, match="text.zip"):
+        saved_decisions(tmp_path / "text.zip")
+
+
 def test_benchmark_agents_start_from_the_init_from_model(tmp_path, capsys):
     path = tmp_path / "agent.yaml"
     path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},

@@ -104,6 +104,7 @@ def run_state(job: Job) -> str:
     it instead of training again), ``"unfinished"`` (a run of them that stopped before its end: resumed), or
     ``"other"`` (anything else: refused by :func:`run_benchmark` before any job starts)."""
     from .config import load_agent_config
+    from .model_files import saved_decisions
     from .train import training_record
 
     if not folder_entries(job.run_dir):
@@ -114,8 +115,11 @@ def run_state(job: Job) -> str:
         not differing_fields(load_agent_config(own), job.config, ignore=("total_timesteps",))
     if not same:
         return "other"
-    finished = (job.run_dir / "model.zip").is_file() and load_agent_config(own).total_timesteps == \
-        job.config.total_timesteps
+    model = job.run_dir / "model.zip"
+    # the budget and the model must both be this job's: a run extended to a larger budget and stopped before
+    # its end holds the new budget beside the model of the old one
+    finished = model.is_file() and load_agent_config(own).total_timesteps == job.config.total_timesteps and \
+        saved_decisions(model) >= job.config.total_timesteps
     return "finished" if finished else "unfinished"
 
 

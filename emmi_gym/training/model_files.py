@@ -83,6 +83,25 @@ def check_model_file(path, algorithm: str) -> Path:
     return path
 
 
+def saved_decisions(path) -> int:
+    """The decisions a model file was trained for (SB3's ``num_timesteps`` in its ``data`` member), read
+    without loading the model; :class:`ModelFileError` naming the file otherwise."""
+    path = input_file(path, "model file", ModelFileError)
+    where = str(path)
+    try:
+        with zipfile.ZipFile(path) as archive:
+            _checked_members(archive, where)
+            data = parse_json(archive.read("data"), where, "a 'data' member of JSON, as Stable-Baselines3 writes it",
+                              ModelFileError)
+    except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, zlib.error) as exc:
+        raise ModelFileError(where, "", f"a zip file that can be read ({type(exc).__name__}: {exc})") from None
+    decisions = data.get("num_timesteps") if isinstance(data, dict) else None
+    if not isinstance(decisions, int) or isinstance(decisions, bool) or decisions < 0:
+        raise ModelFileError(where, "data", "a Stable-Baselines3 model, whose data holds num_timesteps (a count)",
+                             repr(decisions))
+    return decisions
+
+
 def _checked_members(archive: zipfile.ZipFile, where: str) -> list[str]:
     """The names of a model zip's members, checked in number and declared size, ``data`` among them."""
     members = archive.infolist()
