@@ -127,6 +127,23 @@ def test_a_resumed_run_checkpoints_and_evaluates_on_the_schedule_of_an_uninterru
         assert [int(float(row["timesteps"])) for row in csv.DictReader(f)] == [32, 64, 96]
 
 
+def test_a_run_extended_and_interrupted_resumes_from_its_newest_checkpoint_not_its_old_model(tmp_path,
+                                                                                             monkeypatch):
+    hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
+    train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=32, checkpoint_freq=16)), tmp_path,
+          progress=False)
+    assert latest_checkpoint(tmp_path) == tmp_path / "model.zip"  # finished: its model, on a tie with model_32
+    extended = parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=96, checkpoint_freq=16))
+    run_on = interrupt_training_at(monkeypatch, 56)
+    assert train(extended, tmp_path, resume=True, progress=False).interrupted
+    assert latest_checkpoint(tmp_path) == tmp_path / "checkpoints" / "model_56_steps.zip"
+    run_on()
+    end = train(extended, tmp_path, resume=True, progress=False).timesteps
+    assert end >= 96  # from 56, in whole rollouts of 16
+    record = yaml.safe_load((tmp_path / "training.yaml").read_text())
+    assert [(part["start"], part["end"]) for part in record["parts"]] == [(0, 32), (32, 56), (56, end)]
+
+
 @pytest.mark.parametrize("whole_group, vec_env", [(False, "subproc"), (True, "subproc"), (True, "workers")],
                          ids=["kill -INT main process", "Ctrl-C (process group)", "Ctrl-C, rollout workers"])
 def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, vec_env, tmp_path):

@@ -47,7 +47,7 @@ from .config import (
     rollout_workers,
     sb3_policy_kwargs,
 )
-from .model_files import load_model_file
+from .model_files import load_model_file, saved_decisions
 from .records import read_training_record
 from .run_folder import (
     RunError,
@@ -242,12 +242,15 @@ def is_whole_zip(path: Path) -> bool:
 
 
 def latest_checkpoint(run_dir: Path) -> Path | None:
-    """The checkpoint of a run folder to continue from: the final ``model.zip`` if the run finished, else
-    the checkpoint with the most steps that is a whole archive (one cut short by a kill is skipped,
-    with a warning)."""
-    if (run_dir / "model.zip").exists() and is_whole_zip(run_dir / "model.zip"):
-        return run_dir / "model.zip"
-    return next((path for _, path in reversed(checkpoints(run_dir)) if is_whole_checkpoint(path)), None)
+    """The checkpoint of a run folder to continue from: of the final ``model.zip`` and the checkpoints that
+    are whole archives (one cut short by a kill is skipped, with a warning), the one with the most decisions,
+    ``model.zip`` on a tie (a run extended to a larger budget and stopped holds checkpoints past its old
+    ``model.zip``)."""
+    found = [(decisions, False, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
+    final = Path(run_dir) / "model.zip"
+    if final.exists() and is_whole_zip(final):
+        found.append((saved_decisions(final), True, final))
+    return max(found, key=lambda candidate: candidate[:2])[2] if found else None
 
 
 def is_whole_checkpoint(path: Path) -> bool:
