@@ -12,6 +12,7 @@ from emmi_gym.cli import main
 from emmi_gym.experiments.episodes import GROUND_TRUTH
 from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
+from emmi_gym.training.checkpoint_scores import whole_checkpoints
 from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
 from emmi_gym.training.evaluate import evaluate_model
 from emmi_gym.training.train import checkpoints, latest_checkpoint, make_agent_env, train, training_torch_threads
@@ -137,6 +138,12 @@ def test_a_run_extended_and_interrupted_resumes_from_its_newest_checkpoint_not_i
     run_on = interrupt_training_at(monkeypatch, 56)
     assert train(extended, tmp_path, resume=True, progress=False).interrupted
     assert latest_checkpoint(tmp_path) == tmp_path / "checkpoints" / "model_56_steps.zip"
+    newest = (tmp_path / "checkpoints" / "model_56_steps.zip").read_bytes()
+    (tmp_path / "checkpoints" / "model_56_steps.zip").write_bytes(newest[:100])  # cut short by a kill
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
+        scored = [(decisions, path.name) for decisions, path in whole_checkpoints(tmp_path)]
+    assert scored[-1] == (48, "model_48_steps.zip"), "the old model.zip (32 decisions) does not end the curve"
+    (tmp_path / "checkpoints" / "model_56_steps.zip").write_bytes(newest)
     run_on()
     end = train(extended, tmp_path, resume=True, progress=False).timesteps
     assert end >= 96  # from 56, in whole rollouts of 16

@@ -19,7 +19,8 @@ from ..experiments.report import write_csv
 from ..inputs import arguments
 from ..inputs.paths import file_kind, output_folder
 from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings, format_table
-from .train import checkpoints, is_whole_checkpoint, load_run_config, training_record
+from .model_files import saved_decisions
+from .train import checkpoints, is_whole_checkpoint, load_run_config
 
 #: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
 MEASURES = ("return", "oracle_accuracy", "wall_consistency", "ate", "map_accuracy", "coverage", "reached_target",
@@ -61,9 +62,10 @@ def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
                                 f"{file_kind(run_dir.stat().st_mode)}")
     found = [(decisions, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
     final = run_dir / "model.zip"
-    finished_at = int((training_record(run_dir) or {}).get("timesteps", 0))
-    if final.is_file() and finished_at > (found[-1][0] if found else 0) and is_whole_checkpoint(final):
-        found.append((finished_at, final))
+    if final.is_file() and is_whole_checkpoint(final):
+        finished_at = saved_decisions(final)
+        if finished_at > (found[-1][0] if found else 0):
+            found.append((finished_at, final))
     if not found:
         raise FileNotFoundError(f"no checkpoint in {run_dir / 'checkpoints'}: was {run_dir} written by "
                                 "'emmi-gym train'?")
