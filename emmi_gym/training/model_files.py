@@ -15,6 +15,7 @@ from __future__ import annotations
 import pickle
 import zipfile
 import zlib
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..inputs.errors import FieldError
@@ -46,31 +47,19 @@ def check_model_file(path, algorithm: str) -> Path:
     by the sizes the zip declares before any is read: each member's CRC-32, the weights' format (``*.pth``:
     torch.save's zip; SB3 reads them with ``torch.load(weights_only=True)``) and the ``data`` member's
     JSON (nesting bounded); :class:`ModelFileError` naming the file (and member) otherwise."""
-    path = input_file(path, "model file", ModelFileError)
-    where = str(path)
-    try:
-        archive = zipfile.ZipFile(path)
-    except zipfile.BadZipFile:
-        raise ModelFileError(where, "", "a model .zip written by 'emmi-gym train' (this is not a zip file)") from None
-    except (OSError, EOFError, zipfile.LargeZipFile, ValueError) as exc:
-        raise ModelFileError(where, "", f"a zip file that can be read ({exc})") from None
-    try:
-        with archive:
-            names = _checked_members(archive, where)
-            damaged = archive.testzip()  # every member read (bounded above), its CRC-32 checked
-            if damaged is not None:
-                raise ModelFileError(where, damaged, "an undamaged member (its CRC-32 does not match its data: the "
-                                     "file is damaged)")
-            for name in names:
-                if name.endswith(".pth"):
-                    with archive.open(name) as member:
-                        if member.read(4) != b"PK\3\4":
-                            raise ModelFileError(where, name, "PyTorch weights as torch.save writes them (a zip "
-                                                 "archive) and Stable-Baselines3 saves them")
-            data = parse_json(archive.read("data"), where, "a 'data' member of JSON, as Stable-Baselines3 writes it",
-                              ModelFileError)
-    except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, zlib.error) as exc:
-        raise ModelFileError(where, "", f"a zip file that can be read ({type(exc).__name__}: {exc})") from None
+    with _model_archive(path) as (archive, path, names):
+        where = str(path)
+        damaged = archive.testzip()  # every member read (bounded above), its CRC-32 checked
+        if damaged is not None:
+            raise ModelFileError(where, damaged, "an undamaged member (its CRC-32 does not match its data: the "
+                                 "file is damaged)")
+        for name in names:
+            if name.endswith(".pth"):
+                with archive.open(name) as member:
+                    if member.read(4) != b"PK\3\4":
+                        raise ModelFileError(where, name, "PyTorch weights as torch.save writes them (a zip "
+                                             "archive) and Stable-Baselines3 saves them")
+        data = _data_member(archive, where)
     policy_class = data.get("policy_class") if isinstance(data, dict) else None
     module = policy_class.get("__module__") if isinstance(policy_class, dict) else None
     if not isinstance(module, str):
@@ -86,20 +75,39 @@ def check_model_file(path, algorithm: str) -> Path:
 def saved_decisions(path) -> int:
     """The decisions a model file was trained for (SB3's ``num_timesteps`` in its ``data`` member), read
     without loading the model; :class:`ModelFileError` naming the file otherwise."""
+    with _model_archive(path) as (archive, path, _):
+        data = _data_member(archive, str(path))
+    decisions = data.get("num_timesteps") if isinstance(data, dict) else None
+    if not isinstance(decisions, int) or isinstance(decisions, bool) or decisions < 0:
+        raise ModelFileError(str(path), "data", "a Stable-Baselines3 model, whose data holds num_timesteps (a count)",
+                             repr(decisions))
+    return decisions
+
+
+@contextmanager
+def _model_archive(path):
+    """The model zip ``path`` opened, ``(archive, path, member names)``, its members checked in number and size
+    (:func:`_checked_members`); a zip that cannot be opened or read, in the block too, is a
+    :class:`ModelFileError` naming the file."""
     path = input_file(path, "model file", ModelFileError)
     where = str(path)
     try:
-        with zipfile.ZipFile(path) as archive:
-            _checked_members(archive, where)
-            data = parse_json(archive.read("data"), where, "a 'data' member of JSON, as Stable-Baselines3 writes it",
-                              ModelFileError)
+        archive = zipfile.ZipFile(path)
+    except zipfile.BadZipFile:
+        raise ModelFileError(where, "", "a model .zip written by 'emmi-gym train' (this is not a zip file)") from None
+    except (OSError, EOFError, zipfile.LargeZipFile, ValueError) as exc:
+        raise ModelFileError(where, "", f"a zip file that can be read ({exc})") from None
+    try:
+        with archive:
+            yield archive, path, _checked_members(archive, where)
     except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, zlib.error) as exc:
         raise ModelFileError(where, "", f"a zip file that can be read ({type(exc).__name__}: {exc})") from None
-    decisions = data.get("num_timesteps") if isinstance(data, dict) else None
-    if not isinstance(decisions, int) or isinstance(decisions, bool) or decisions < 0:
-        raise ModelFileError(where, "data", "a Stable-Baselines3 model, whose data holds num_timesteps (a count)",
-                             repr(decisions))
-    return decisions
+
+
+def _data_member(archive: zipfile.ZipFile, where: str):
+    """The ``data`` member of a model zip, parsed as JSON (nesting bounded)."""
+    return parse_json(archive.read("data"), where, "a 'data' member of JSON, as Stable-Baselines3 writes it",
+                      ModelFileError)
 
 
 def _checked_members(archive: zipfile.ZipFile, where: str) -> list[str]:
