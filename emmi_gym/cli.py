@@ -223,7 +223,7 @@ def _add_train_parser(sub) -> None:
                          "(copy it into a new run without training)")
     arguments.add_ray(tr, "run the env workers as Ray actors (vec_env: ray_workers, or ray for vec_env subproc "
                           "and dummy)")
-    tr.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(tr)
     _torch_threads_option(tr, "1 beside rollout workers and env subprocesses; one per core when the envs run "
                               "in this process")
     tr.set_defaults(func=_cmd_train)
@@ -243,7 +243,7 @@ def _add_clone_parser(sub) -> None:
     cl.add_argument("--out", required=True, help="folder for model.zip, config.yaml, demonstrations.npz, clone.yaml")
     cl.add_argument("--overwrite", action="store_true",
                     help="write into a folder that is not empty, replacing an earlier clone's files there")
-    cl.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(cl)
     cl.set_defaults(func=_cmd_clone)
 
 
@@ -265,7 +265,7 @@ def _add_evaluate_parser(sub) -> None:
     ev.add_argument("--out", default=None, metavar="DIR",
                     help="with --world or --baselines: write episodes.csv, summary.md, front.png (map quality "
                          "against robot time) and maps.png (one episode's maps, where the model went back) here")
-    ev.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(ev)
     ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
     _torch_threads_option(ev, "1: the env's kernels need the cores")
     ev.set_defaults(func=_cmd_evaluate)
@@ -294,7 +294,7 @@ def _add_benchmark_parser(sub) -> None:
     arguments.add_workers(bench)
     arguments.add_ray(bench, "run the agents' training and evaluation as Ray tasks instead of local processes")
     bench.add_argument("--out", default="benchmark_out")
-    bench.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(bench)
     bench.set_defaults(func=_cmd_benchmark)
 
 

@@ -56,7 +56,7 @@ def _add_options(parser: argparse.ArgumentParser, seeds: int, particles: int, ou
                         help="waypoint decisions per run at most (default 40)")
     arguments.add_workers(parser)
     parser.add_argument("--out", default=out, help=f"output folder (default {out})")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(parser)
     parser.set_defaults(func=run)
 
 

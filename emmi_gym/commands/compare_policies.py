@@ -27,7 +27,7 @@ def add_parser(subparsers) -> None:
                         metavar=("BASELINE", "POLICY"), help="default: frontier active_loop_closing")
     arguments.add_workers(parser)
     parser.add_argument("--out", default="results/plans", help="output folder (default results/plans)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(parser)
     parser.set_defaults(func=run)
 
 

@@ -30,7 +30,7 @@ def add_parser(subparsers) -> None:
     rep.add_argument("--matching-range", type=arguments.number(0.0, unit="m"), default=None,
                      help="beams beyond this are left out of matching and weights (default: the sensor's range)")
     rep.add_argument("--out", default="replay_out", help="folder for metrics.csv and the PNGs")
-    rep.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(rep)
     rep.set_defaults(func=run)
 
 

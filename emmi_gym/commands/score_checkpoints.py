@@ -21,7 +21,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--seed", type=arguments.SEED, default=200_000, help="first episode seed (default 200000: "
                         "held out, as 'emmi-gym evaluate')")
     arguments.add_workers(parser)
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    arguments.add_quiet(parser)
     parser.set_defaults(func=run)
 
 

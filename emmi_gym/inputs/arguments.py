@@ -63,6 +63,11 @@ def add_workers(parser: argparse.ArgumentParser) -> None:
                         help="worker processes (default one per core)")
 
 
+def add_quiet(parser: argparse.ArgumentParser) -> None:
+    """``--quiet``, in every command with a progress bar: no progress bar."""
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
 def add_seed_range(parser: argparse.ArgumentParser, seeds: int, first_seed: int = 0, least: int = 1) -> None:
     """``--seeds N`` and ``--first-seed S``, in every command the seeds S, S + 1, ..., S + N - 1 (``--seeds``
     is a count everywhere; ``least`` the fewest the command takes)."""
