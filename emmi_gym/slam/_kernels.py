@@ -225,13 +225,14 @@ def insert_scans(start, stop, codes, hits, ever_hit, counts, coarse, block, pose
                     break
                 if stamp[cy, cx] < hit_id:
                     listed = _listed(stamp[cy, cx], first)
-                    # inc_free < 0 moves the code unless it sits at the clamp (tested before the update:
-                    # cheaper than a flag returned by _add_clamped)
+                    # inc_free < 0 moves the code unless it sits at the clamp, as most cells a scan crosses
+                    # in a mapped area do: those keep their code, histogram and block count untouched
                     changed = grid[cy, cx] > -clamp
-                    _add_clamped(grid, counts[i], coarse[i], block, cy, cx, inc_free, clamp)
-                    if changed and not listed:
-                        touched[n_touched] = cy * w + cx
-                        n_touched += 1
+                    if changed:
+                        _add_clamped(grid, counts[i], coarse[i], block, cy, cx, inc_free, clamp)
+                        if not listed:
+                            touched[n_touched] = cy * w + cx
+                            n_touched += 1
                     stamp[cy, cx] = free_id + 1 if listed or changed else free_id
                 if t_x < t_y:
                     cx += step_x
