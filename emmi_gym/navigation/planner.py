@@ -1,4 +1,4 @@
-"""Paths on the expected map: cost-distance with obstacle inflation (scikit-image's MCP), and the
+"""Paths on the expected map: cost-distance with obstacle inflation (Dijkstra's search, A* to a goal), and the
 check that tells the robot to replan when the map it learns on the way blocks its path."""
 
 from __future__ import annotations
@@ -8,11 +8,10 @@ from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-from scipy import ndimage
-from skimage.graph import MCP_Geometric
 
 from ..certainty import observed_cells
 from ..geometry.grid import GridGeometry
+from . import _search
 
 OCCUPIED_P = 0.65   # expected-map probability above which a cell is surely an obstacle
 BLOCKING_P = 0.55   # ... above which the planner keeps out: a wall blurred by disagreeing particles still blocks
@@ -34,9 +33,9 @@ class CostMap:
 
     ``geometry`` is the whole map's; the costs were computed over the window of cells whose
     (row, col) is ``corner`` plus the window's own indices: ``cumulative`` (inf where
-    unreachable), and scikit-image's MCP result ``traceback`` and ``offsets`` (for each
-    cell, the index of the step that reached it; -1 at the start), kept as plain arrays so
-    the env can be pickled. ``start`` is the whole map's (row, col) the costs are measured
+    unreachable), and the search's ``traceback`` and ``offsets`` (for each cell, the index
+    of the step that reached it; -1 at the start), kept as plain arrays so the env can be
+    pickled. ``start`` is the whole map's (row, col) the costs are measured
     from. Cells outside the window are unreachable."""
 
     geometry: GridGeometry
@@ -89,7 +88,7 @@ class CostMap:
         return lengths
 
     def _cells_to(self, row: int, col: int) -> list[tuple[int, int]]:
-        """The whole map's cells from the start to (row, col), walking the traceback back (``MCP.traceback``'s walk)."""
+        """The whole map's cells from the start to (row, col), walking the traceback back."""
         if not np.isfinite(self.costs_at(row, col)):
             raise ValueError(f"no path to cell ({row}, {col}): it is unreachable")
         r0, c0 = self.corner
@@ -103,7 +102,7 @@ class CostMap:
 
 @nb.njit(cache=True)
 def _traceback_lengths(traceback, offsets, step_lengths, rows, cols):
-    """For each cell (rows[k], cols[k]) of a window, the summed ``step_lengths`` of the MCP steps that lead
+    """For each cell (rows[k], cols[k]) of a window, the summed ``step_lengths`` of the search's steps that lead
     back from it to the start (``traceback``: the index into ``offsets`` of the step that reached each
     cell, -1 at the start)."""
     lengths = np.zeros(rows.size)
@@ -130,34 +129,30 @@ def travel_costs(expected_map: np.ndarray, geometry: GridGeometry, start_xy, rob
     filter is uncertain). Known free cells cost 1 per metre, unknown ones 2 (they
     may be crossed: a loop-closing target behind a stretch not yet seen is reachable).
     The robot's own footprint is passable (at the inflated cost), so that a robot
-    brushing a wall can still leave.
+    brushing a wall can still leave (:func:`~emmi_gym.navigation._search.cell_costs`).
 
     The costs are computed within :func:`planning_window` only (what the robot has observed,
     plus ``PLANNING_MARGIN`` of unknown round it), so that planning costs what has been
-    explored, not the whole map's extent.
+    explored, not the whole map's extent; with a goal, the search is A* and stops at the goal
+    (:func:`~emmi_gym.navigation._search.cost_distance`), so only the costs of the cells it
+    settled on the way are known (the others read inf).
     """
     res = geometry.resolution
     start = _clipped_cell(geometry, start_xy)
     goal = None if goal_xy is None else _clipped_cell(geometry, goal_xy)
     window = planning_window(expected_map, geometry, [start] + ([goal] if goal else []))
     corner = (window[0].start, window[1].start)
-    expected_map = expected_map[window]
-    obstacle = expected_map > blocking_p
-    clearance = ndimage.distance_transform_edt(~obstacle) * res
-    costs = np.where(expected_map < FREE_P, 1.0, UNKNOWN_COST)
+    expected_map = np.ascontiguousarray(expected_map[window])
     keep_out = robot_radius + KEEP_OUT_MARGIN
-    soft = max(PREFERRED_CLEARANCE, 2 * keep_out)
-    costs = costs + CLEARANCE_COST * np.clip((soft - clearance) / (soft - keep_out), 0.0, 1.0) ** 2
-    rows, cols = np.ogrid[:costs.shape[0], :costs.shape[1]]
-    x, y = geometry.centre_of(rows + corner[0], cols + corner[1])
-    footprint = np.hypot(x - start_xy[0], y - start_xy[1]) <= robot_radius + res
-    costs[(clearance < keep_out) & ~(footprint & ~obstacle)] = np.inf
     row, col = start[0] - corner[0], start[1] - corner[1]
-    costs[row, col] = max(float(costs[row, col]), 1.0) if np.isfinite(costs[row, col]) else 5.0
-    mcp = MCP_Geometric(costs)
-    ends = None if goal is None else [(goal[0] - corner[0], goal[1] - corner[1])]
-    cumulative, traceback = mcp.find_costs([(row, col)], ends)
-    return CostMap(geometry, cumulative, np.asarray(traceback), np.asarray(mcp.offsets), start, corner)
+    start_gx = (start_xy[0] - geometry.origin_x) / res - corner[1]
+    start_gy = (start_xy[1] - geometry.origin_y) / res - corner[0]
+    costs = _search.cell_costs(expected_map, res, FREE_P, UNKNOWN_COST, keep_out,
+                               max(PREFERRED_CLEARANCE, 2 * keep_out), CLEARANCE_COST, float(start_gx),
+                               float(start_gy), row, col, (robot_radius + res) / res, blocking_p)
+    goal_row, goal_col = (-1, -1) if goal is None else (goal[0] - corner[0], goal[1] - corner[1])
+    cumulative, traceback = _search.cost_distance(costs, row, col, goal_row, goal_col)
+    return CostMap(geometry, cumulative, traceback, _search.OFFSETS, start, corner)
 
 
 def planning_window(expected_map: np.ndarray, geometry: GridGeometry, cells) -> tuple[slice, slice]:
@@ -184,28 +179,22 @@ def path_obstructed(expected_map: np.ndarray, geometry: GridGeometry, polyline, 
                     layer=None) -> bool:
     """Whether an obstacle (p > ``blocking_p``) now lies closer than the planner's keep-out distance
     to the polyline of (x, y) points, between ``skip`` metres along it (where the robot is) and
-    ``skip + horizon`` (what the sensor can have changed, as a local costmap's window: the cost then
-    does not grow with the path's length, which a wildly wrong pose estimate can make kilometres).
+    ``skip + horizon`` (what the sensor can have changed, as a local costmap's window).
     ``layer`` (rows, columns, p): cells read as at least p, as if laid over the map (the scan's
-    obstacle layer), without copying the map to lay them."""
-    points = np.asarray(polyline, dtype=np.float64)
+    obstacle layer), without copying the map to lay them.
+
+    The path is sampled every half cell (:func:`~emmi_gym.navigation._search.path_blocked`), only
+    where it passes within the keep-out distance of the map: outside its extent the map holds
+    nothing, so the cost is bounded by the map's size, however far the path runs (a wildly wrong
+    pose estimate can make it kilometres), and no memory grows with it."""
+    points = np.ascontiguousarray(polyline, dtype=np.float64).reshape(-1, 2)
     if len(points) < 2:
         return False
-    res = geometry.resolution
-    lengths = np.hypot(*np.diff(points, axis=0).T)
-    along = np.concatenate([[0.0], np.cumsum(lengths)])
-    s = np.arange(skip, min(along[-1], skip + horizon), res / 2)
-    if s.size == 0:
-        return False
-    rows, cols = geometry.cell_of(np.interp(s, along, points[:, 0]), np.interp(s, along, points[:, 1]))
-    reach = int(np.ceil((robot_radius + KEEP_OUT_MARGIN) / res))
-    dr, dc = np.mgrid[-reach:reach + 1, -reach:reach + 1]
-    disk = (dr * dr + dc * dc) * res * res < (robot_radius + KEEP_OUT_MARGIN) ** 2
-    r = np.clip(rows[:, None] + dr[disk][None, :], 0, geometry.rows - 1)
-    c = np.clip(cols[:, None] + dc[disk][None, :], 0, geometry.cols - 1)
-    if np.any(expected_map[r, c] > blocking_p):
-        return True
-    if layer is None or not layer[2] > blocking_p:
-        return False
-    layer_rows, layer_cols, _ = layer
-    return bool(np.isin(r * geometry.cols + c, layer_rows * geometry.cols + layer_cols).any())
+    keep_out = robot_radius + KEEP_OUT_MARGIN
+    blocks = layer is not None and layer[2] > blocking_p
+    layer_cells = np.zeros(0, dtype=np.int64)
+    if blocks:
+        layer_cells = np.unique(np.asarray(layer[0], dtype=np.int64) * geometry.cols + np.asarray(layer[1]))
+    return _search.path_blocked(np.ascontiguousarray(expected_map), geometry.origin_x, geometry.origin_y,
+                                geometry.resolution, points, float(skip), float(min(horizon, 1e300)), keep_out,
+                                blocking_p, layer_cells)
