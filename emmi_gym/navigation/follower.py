@@ -22,6 +22,9 @@ class WaypointFollower:
         self.max_speed, self.max_turn_rate = max_speed, max_turn_rate
         self.tolerance, self.heading_gain = tolerance, heading_gain
         self.index = 0
+        # the path's length from each waypoint to the last, so that the length left costs the same at every step
+        legs = np.hypot(*np.diff(np.array(self.waypoints), axis=0).T) if len(self.waypoints) > 1 else np.zeros(0)
+        self._length_after = np.concatenate([np.cumsum(legs[::-1])[::-1], [0.0]]).tolist()
 
     @property
     def done(self) -> bool:
@@ -34,8 +37,10 @@ class WaypointFollower:
 
     def remaining_length(self, pose) -> float:
         """Length (m) of the rest of the path from ``pose``: to the next waypoint, then along the others."""
-        points = np.array([tuple(pose[:2])] + self.remaining)
-        return float(np.hypot(*np.diff(points, axis=0).T).sum())
+        if self.done:
+            return 0.0
+        x, y = self.waypoints[self.index]
+        return math.hypot(x - float(pose[0]), y - float(pose[1])) + self._length_after[self.index]
 
     def command(self, pose) -> tuple[float, float]:
         x, y, theta = pose
@@ -47,6 +52,6 @@ class WaypointFollower:
         if self.done:
             return 0.0, 0.0
         error = (math.atan2(ty - y, tx - x) - theta + math.pi) % (2 * math.pi) - math.pi
-        omega = float(np.clip(self.heading_gain * error, -self.max_turn_rate, self.max_turn_rate))
+        omega = min(self.max_turn_rate, max(-self.max_turn_rate, self.heading_gain * error))
         v = self.max_speed * max(0.0, math.cos(error)) ** 4
         return v, omega

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from ..inputs.validation import MAX_LASER_RANGE, Integer, Real, check_fields, option
@@ -64,18 +65,41 @@ class Laser:
 
     def true_ranges(self, pose) -> np.ndarray:
         """Noise-free ranges from pose (x, y, theta); beams that hit nothing return max_range."""
+        return self._cast(pose).copy()
+
+    def _cast(self, pose) -> np.ndarray:
+        """:meth:`true_ranges` in the laser's own buffer, which the next cast overwrites."""
         x, y, theta = pose
         cast_rays(float(x), float(y), self._angles + theta, self.config.max_range, self.capsules, *self._grid,
                   self._buffer)
-        return self._buffer.copy()
+        return self._buffer
 
     def scan(self, pose, rng: np.random.Generator) -> np.ndarray:
         """A noisy scan: Gaussian range noise on hits, clipped to [0, max_range]; dropped beams read max_range."""
         cfg = self.config
-        ranges = self.true_ranges(pose)
-        hit = ranges < cfg.max_range
-        noise = rng.normal(0.0, cfg.range_sigma, ranges.size) if cfg.range_sigma > 0 else 0.0
-        ranges = np.where(hit, np.clip(ranges + noise, 0.0, cfg.max_range), cfg.max_range)
-        if cfg.drop_probability > 0:
-            ranges[rng.random(ranges.size) < cfg.drop_probability] = cfg.max_range
-        return ranges
+        ranges = self._cast(pose)
+        normals = rng.standard_normal(ranges.size) if cfg.range_sigma > 0 else _NO_DRAWS
+        uniforms = rng.random(ranges.size) if cfg.drop_probability > 0 else _NO_DRAWS
+        return _noisy_ranges(ranges, normals, uniforms, cfg.range_sigma, cfg.drop_probability, cfg.max_range)
+
+
+_NO_DRAWS = np.zeros(0)
+
+
+@nb.njit(cache=True)
+def _noisy_ranges(true_ranges, normals, uniforms, sigma, drop_probability, max_range):
+    """Noisy readings of ``true_ranges``: a hit (below ``max_range``) plus ``sigma`` times its normal draw,
+    clipped to [0, max_range]; a beam whose uniform draw is below ``drop_probability`` reads ``max_range``
+    (no draws given: no noise, no drops)."""
+    out = np.empty_like(true_ranges)
+    for k in range(true_ranges.size):
+        r = true_ranges[k]
+        if r < max_range:
+            if normals.size:
+                r = min(max(r + sigma * normals[k], 0.0), max_range)
+        else:
+            r = max_range
+        if uniforms.size and uniforms[k] < drop_probability:
+            r = max_range
+        out[k] = r
+    return out
