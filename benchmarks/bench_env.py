@@ -26,13 +26,17 @@ inside it.
 
 This machine's speed drifts by tens of percent from minute to minute, more than most
 changes gain: ``--against DIR`` (a ``git worktree`` of the code before a change) plays
-the same steps with both codes in turns, one step each, and prints their ratio. ``--options``
-times another setting (``gym.make`` options for every id): its episodes differ from the defaults'.
+the same number of steps, with actions drawn the same way, with both codes in turns, one
+step each, and prints their ratio; where the other code registers an older version of the id
+(``-v0`` for ``-v1``), it plays that one. ``--options`` times another setting (``gym.make``
+options for every id, given to both codes with ``--against``): its episodes differ from the
+defaults'.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -125,7 +129,7 @@ def bench(env_id: str, n_steps: int, options: dict, with_resets: bool) -> tuple[
     return wall, sim_steps, spent, updates
 
 
-def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: int | None) -> None:
+def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: int | None, options: dict) -> None:
     """The same episodes played by this code and by the code in ``code`` (a checkout of another commit), in
     two processes that take turns, one env step each: whatever the machine does meanwhile slows both alike.
     Prints the ratio of their times. Each process first plays the steps once untimed (both at once): a fresh
@@ -133,7 +137,8 @@ def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: in
     resampling), and once made a fresh worktree look four times slower."""
     if not (Path(code) / "emmi_gym" / "__init__.py").is_file():  # else the worker would import this code
         raise SystemExit(f"--against {code}: no emmi_gym package there (make one with git worktree add DIR REV)")
-    settings = (["--with-resets"] if with_resets else []) + ([f"--threads={threads}"] if threads else [])
+    settings = ((["--with-resets"] if with_resets else []) + ([f"--threads={threads}"] if threads else []) +
+                [f"--options={json.dumps(options)}"])
     workers = [subprocess.Popen([sys.executable, __file__, "--worker", env_id, *settings], stdin=subprocess.PIPE,
                                 stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=path))
                for path in (str(REPO), str(Path(code).resolve()))]
@@ -164,16 +169,29 @@ def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: in
           f"{f' (kernels on {threads} thread(s))' if threads else ''}")
 
 
-def worker(env_id: str, with_resets: bool) -> None:
+def registered_version(env_id: str) -> str:
+    """``env_id``, or where the code imported does not register it, the highest version of the same name it
+    registers (the code before a change of version knows only the older one)."""
+    if env_id in gym.registry:
+        return env_id
+    namespace, name, _ = gym.envs.registration.parse_env_id(env_id)
+    version = gym.envs.registration.find_highest_version(namespace, name)
+    if version is None:
+        raise SystemExit(f"{env_id}: the code imported registers no version of {namespace}/{name}")
+    return gym.envs.registration.get_env_id(namespace, name, version)
+
+
+def worker(env_id: str, with_resets: bool, options: dict) -> None:
     """The other end of :func:`against`: "warm N" plays N steps untimed and starts the episodes again;
     "step" plays one step and writes its wall time back."""
-    episodes = play(env_id, {}, with_resets)
+    env_id = registered_version(env_id)
+    episodes = play(env_id, options, with_resets)
     for line in sys.stdin:
         if line.startswith("warm"):
             for _ in zip(range(int(line.split()[1])), episodes, strict=False):
                 pass
             episodes.close()
-            episodes = play(env_id, {}, with_resets)
+            episodes = play(env_id, options, with_resets)
             print("warm", flush=True)
         else:
             print(next(episodes)[0], flush=True)
@@ -204,7 +222,7 @@ def main() -> None:
     parser.add_argument("--against", metavar="DIR", help="a checkout of other code (git worktree add DIR REV): "
                         "play the same steps with both, in turns, and print the ratio of their times")
     parser.add_argument("--options", default="{}", help="JSON of gym.make options for every id (another "
-                        "setting's speed: its episodes differ), e.g. '{\"particles\": 8}'; not with --against")
+                        "setting's speed: its episodes differ), e.g. '{\"particles\": 8}'; with --against, both codes'")
     parser.add_argument("--with-resets", action="store_true", help="count the reset after an episode's last step "
                         "with that step (whole decisions, as training waits for them)")
     parser.add_argument("--threads", type=arguments.integer(1, 256), metavar="N",
@@ -214,7 +232,7 @@ def main() -> None:
     if args.threads:
         set_kernel_threads(args.threads)
     if args.worker:
-        return worker(args.worker, args.with_resets)
+        return worker(args.worker, args.with_resets, json.loads(args.options))
     time_the_parts()
     from _options import checked, json_object  # here, not in the workers: they may run older code
 
@@ -222,8 +240,6 @@ def main() -> None:
     from emmi_gym.inputs.validation import build
 
     options = json_object(parser, "--options", args.options)
-    if options and args.against:
-        parser.error("--options with --against: both codes must play the same episodes, made with the defaults")
     for name in args.ids:
         checked(parser, build, EnvConfig, {**ENV_IDS[name], **options}, "", source="--options")
     for name in args.ids:
@@ -231,7 +247,7 @@ def main() -> None:
         velocity = gym.spec(env_id).kwargs.get("action_mode") == "velocity"
         n_steps = args.velocity_steps if velocity else args.decisions
         if args.against:
-            against(env_id, n_steps, args.against, args.with_resets, args.threads)
+            against(env_id, n_steps, args.against, args.with_resets, args.threads, options)
         else:
             report(env_id, n_steps, args.repeats, options, args.with_resets)
 
