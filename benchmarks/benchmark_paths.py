@@ -8,7 +8,7 @@ reward's agent and of each scripted policy on the same world and seed, their pat
 ``BENCHMARK_DIR`` is the ``--out`` of ``emmi-gym benchmark``: the agent of each reward is
 ``runs/<reward>_seed<agent-seed>/model.zip``; the episode is seeded ``S`` (default: the benchmark's
 first held-out episode, from its ``benchmark_episodes.csv``). It serves any benchmark whose env plays
-the scripted policies (``LoopCorridor-v0``, ``LoopOrder-v0``). Every policy plays the env of the emmi agent's held-out
+the scripted policies (``LoopCorridor-v1``, ``LoopOrder-v1``). Every policy plays the env of the emmi agent's held-out
 evaluation (the reward changes what an agent learns, not what an episode shows it), so the episodes
 share the world, the start and the random draws up to the first decision
 (:func:`emmi_gym.experiments.comparison.play_on_world`). The panels mark the revisit targets each

@@ -1,7 +1,7 @@
 """Where the particles stand at the decision point of a loop, against the truth: what closing the loop can
 choose from.
 
-    python benchmarks/loop_cloud.py [--env-id emmi_gym/LoopOrder-v0] [--seeds 10] [--first-seed 0]
+    python benchmarks/loop_cloud.py [--env-id emmi_gym/LoopOrder-v1] [--seeds 10] [--first-seed 0]
                                     [--odometry poor]
 
 For each seed it resets the env (which drives the loop up to the decision point) and prints, averaged over
@@ -38,7 +38,7 @@ def cloud(env, seed: int) -> tuple[float, ...]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env-id", default="emmi_gym/LoopOrder-v0")
+    parser.add_argument("--env-id", default="emmi_gym/LoopOrder-v1")
     arguments.add_seed_range(parser, 10)
     parser.add_argument("--odometry", default=None, help="an odometry preset (default: the env's)")
     args = parser.parse_args()

@@ -3,9 +3,9 @@
     python benchmarks/reward_farming.py [--seeds 5] [--steps 300] [--decisions 40]
 
 Velocity mode (one simulator step per action) on the hard configuration's worlds and
-sensors (ExplorePlans-v0's DungeonMaps plans, SICK LMS200 at 8 m, poor odometry): standing
+sensors (ExplorePlans-v1's DungeonMaps plans, SICK LMS200 at 8 m, poor odometry): standing
 still, spinning in place at full turn rate, and driving straight ahead (until a wall), each
-for ``--steps`` steps; waypoint mode (``ExplorePlans-v0``): the frontier and active
+for ``--steps`` steps; waypoint mode (``ExplorePlans-v1``): the frontier and active
 loop-closing policies for ``--decisions`` decisions. Prints per variant the mean return
 (the variant's reward at its default scale plus the time and collision costs, undiscounted)
 per policy, and the same per 100 simulator steps, over ``--seeds`` plans and seeds.
@@ -24,7 +24,7 @@ from emmi_gym.env.registration import ENV_IDS
 from emmi_gym.inputs import arguments
 from emmi_gym.policies import make_policy
 
-HARD = {k: v for k, v in ENV_IDS["ExplorePlans-v0"].items() if k not in ("action_mode", "max_decisions")}
+HARD = {k: v for k, v in ENV_IDS["ExplorePlans-v1"].items() if k not in ("action_mode", "max_decisions")}
 VELOCITY_POLICIES = {"stand still": (0.0, 0.0), "spin in place": (0.0, 1.0), "drive ahead": (1.0, 0.0)}
 
 
@@ -37,7 +37,7 @@ def returns(steps: list[dict]) -> dict[str, float]:
 
 
 def velocity_episode(command, seed: int, n_steps: int) -> dict:
-    env = gym.make("emmi_gym/ExplorePlans-v0", **dict(HARD, action_mode="velocity", max_sim_steps=n_steps))
+    env = gym.make("emmi_gym/ExplorePlans-v1", **dict(HARD, action_mode="velocity", max_sim_steps=n_steps))
     env.reset(seed=seed)
     steps, done = [], False
     while not done:
@@ -48,7 +48,7 @@ def velocity_episode(command, seed: int, n_steps: int) -> dict:
 
 
 def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
-    env = gym.make("emmi_gym/ExplorePlans-v0", max_decisions=n_decisions)
+    env = gym.make("emmi_gym/ExplorePlans-v1", max_decisions=n_decisions)
     policy = make_policy(policy_name)
     env.reset(seed=seed)
     policy.reset(seed)

@@ -7,7 +7,7 @@ and final map quality, and the policy the reward prefers (emmi_gym/experiments/r
 
     python benchmarks/reward_returns.py --worlds dungeon_maps/train --plans 12 \\
         --policies frontier active_loop_closing random --out results/alignment_train
-    python benchmarks/reward_returns.py --env-id emmi_gym/LoopCorridor-v0 --worlds loop_corridor --seeds 4 \\
+    python benchmarks/reward_returns.py --env-id emmi_gym/LoopCorridor-v1 --worlds loop_corridor --seeds 4 \\
         --policies close_loop_first explore_first frontier --discounts none 0.95 0.9@100
 
 ``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
@@ -34,7 +34,7 @@ from emmi_gym.policies import POLICY_NAMES
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env-id", default="emmi_gym/ExplorePlans-v0")
+    parser.add_argument("--env-id", default="emmi_gym/ExplorePlans-v1")
     parser.add_argument("--options", default="{}", help="JSON of further gym.make options")
     parser.add_argument("--worlds", nargs="+", default=["dungeon_maps/train"])
     parser.add_argument("--plans", type=arguments.integer(1), default=12, help="maps taken from each map set")

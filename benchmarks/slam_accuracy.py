@@ -4,7 +4,7 @@
         [--laser '{"preset": "sick_lms200", "max_range": 8.0}'] [--odometry poor]
 
 The sensors default to the simulator's own (a 360-degree 8 m laser, typical odometry);
-``--laser`` and ``--odometry`` take the environments' presets (``LoopCorridor-v0``
+``--laser`` and ``--odometry`` take the environments' presets (``LoopCorridor-v1``
 registers the SICK LMS200 at 8 m and poor odometry).
 
 For each seed: record start -> decision -> start (74 m), run the filter, and report

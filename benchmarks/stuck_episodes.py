@@ -1,6 +1,6 @@
 """Episodes that run out of targets: how often a waypoint env leaves the robot nothing to go to.
 
-    python benchmarks/stuck_episodes.py [--env-id emmi_gym/Explore-v0] [--policy random] [--episodes 100]
+    python benchmarks/stuck_episodes.py [--env-id emmi_gym/Explore-v1] [--policy random] [--episodes 100]
 
 Plays ``--episodes`` episodes (seeds 0, 1, ...) with a scripted policy (``emmi_gym.policies``; the
 random one draws among the valid slots, seeded with the episode's seed) and counts the decisions
@@ -25,7 +25,7 @@ gym.register_envs(emmi_gym)
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env-id", default="emmi_gym/Explore-v0")
+    parser.add_argument("--env-id", default="emmi_gym/Explore-v1")
     parser.add_argument("--policy", default="random", help="frontier, random, active_loop_closing, ...")
     parser.add_argument("--episodes", type=arguments.EPISODES, default=100)
     args = parser.parse_args()

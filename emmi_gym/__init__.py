@@ -5,7 +5,7 @@ Importing the package registers the environments and makes the shipped agents av
 
     import gymnasium as gym, emmi_gym
     gym.register_envs(emmi_gym)
-    env = gym.make("emmi_gym/LoopCorridor-v0")
+    env = gym.make("emmi_gym/LoopCorridor-v1")
 """
 
 __version__ = "0.1.0"

@@ -283,7 +283,7 @@ def _add_benchmark_parser(sub) -> None:
     bench.add_argument("--episodes", type=_EPISODES, default=10, help="held-out evaluation episodes per agent")
     bench.add_argument("--eval-seed", type=_SEED, default=200_000,
                        help="first held-out episode's seed, for the agents and the baselines alike (default 200000; "
-                            "LoopOrder-v0 holds out the seeds from 1000000)")
+                            "LoopOrder-v1 holds out the seeds from 1000000)")
     bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
     bench.add_argument("--init-from", default=None, metavar="MODEL",
                        help="every agent starts from this model's weights (as 'train --init-from'), e.g. a "

@@ -5,7 +5,7 @@ success that did what it should, or one of the failures the audit counts: a sile
 0 where the input should have been refused, or an output that is wrong), data loss (a file of an earlier
 run changed), a raw traceback, or a probe over 1 GB or 120 s.
 
-Every probe gets its own copy of a small finished run R (MaskablePPO on LoopCorridor-v0, 16 decisions).
+Every probe gets its own copy of a small finished run R (MaskablePPO on LoopCorridor-v1, 16 decisions).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import yaml
 #: A probe passes under these (the issue's criteria).
 LIMIT_SECONDS, LIMIT_MB = 120.0, 1024.0
 
-CORRIDOR = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3, "max_decisions": 3}},
+CORRIDOR = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},
             "algorithm": "MaskablePPO", "policy": "MultiInputPolicy",
             "hyperparameters": {"n_steps": 8, "batch_size": 8, "n_epochs": 1, "policy_kwargs": {"net_arch": [8]}},
             "n_envs": 1, "vec_env": "dummy", "total_timesteps": 16, "seed": 3, "eval": {"freq": 0},
@@ -125,9 +125,9 @@ def training_probes(folder: Path) -> list[Probe]:
     f = folder
     configs = {"corridor": CORRIDOR, "corridor24": dict(CORRIDOR, total_timesteps=24),
                "ppo": dict(CORRIDOR, algorithm="PPO"),
-               "explore": dict(CORRIDOR, env={"id": "emmi_gym/Explore-v0", "kwargs": CORRIDOR["env"]["kwargs"]}),
-               "plans": dict(CORRIDOR, env={"id": "emmi_gym/ExplorePlans-v0", "kwargs": {"particles": 3}}),
-               "obs32": dict(CORRIDOR, env={"id": "emmi_gym/LoopCorridor-v0",
+               "explore": dict(CORRIDOR, env={"id": "emmi_gym/Explore-v1", "kwargs": CORRIDOR["env"]["kwargs"]}),
+               "plans": dict(CORRIDOR, env={"id": "emmi_gym/ExplorePlans-v1", "kwargs": {"particles": 3}}),
+               "obs32": dict(CORRIDOR, env={"id": "emmi_gym/LoopCorridor-v1",
                                             "kwargs": dict(CORRIDOR["env"]["kwargs"], obs_size=32)})}
     for name, data in configs.items():
         (f / f"{name}.yaml").write_text(yaml.safe_dump(data))

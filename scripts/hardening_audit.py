@@ -55,7 +55,7 @@ WORLD = {"name": "box", "bounds": {"xmin": -3, "ymin": -3, "xmax": 3, "ymax": 3}
 BOMB = "a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n" + "".join(
     f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join(['*' + chr(97 + i)] * 9)}]\n" for i in range(8))
 SCAN = " ".join(["2.5"] * 180)
-AGENT = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3}}, "algorithm": "MaskablePPO",
+AGENT = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3}}, "algorithm": "MaskablePPO",
          "policy": "MultiInputPolicy", "hyperparameters": {"n_steps": 16}, "n_envs": 1, "vec_env": "dummy"}
 
 
@@ -81,7 +81,7 @@ def run_case(action, limit: float = 120.0) -> tuple[str, float, float]:
     return outcome, seconds, peak
 
 
-def make(env_id="emmi_gym/LoopCorridor-v0", reset=False, **options):
+def make(env_id="emmi_gym/LoopCorridor-v1", reset=False, **options):
     def action():
         env = gym.make(env_id, **options)
         if reset:
@@ -130,8 +130,8 @@ def cases(folder: Path) -> list[tuple[str, object]]:
         ("particles=1e9", make(particles=10**9)),
         ("obs_size=1e6", make(obs_size=10**6)),
         ("n_frontiers=1e7", make(n_frontiers=10**7)),
-        ("generator nx=1e4", make("emmi_gym/Explore-v0", generator={"nx": 10**4})),
-        ("generator spacing=1e6", make("emmi_gym/Explore-v0", generator={"spacing": 1e6})),
+        ("generator nx=1e4", make("emmi_gym/Explore-v1", generator={"nx": 10**4})),
+        ("generator spacing=1e6", make("emmi_gym/Explore-v1", generator={"spacing": 1e6})),
         ("laser n_beams=1e8", make(laser={"n_beams": 10**8})),
         ("resolution=1e-9", make(resolution=1e-9)),
         ("particles=1000 at resolution 0.01 in loop_corridor", make(reset=True, particles=1000, resolution=0.01)),
@@ -141,8 +141,8 @@ def cases(folder: Path) -> list[tuple[str, object]]:
         ("laser n_beams=3.0", make(laser={"n_beams": 3.0})),
         ("laser n_beams=nan", make(laser={"n_beams": float("nan")})),
         ("slam likelihood_sigma=1e-300", make(slam={"likelihood_sigma": 1e-300})),
-        ("generator spacing=inf", make("emmi_gym/Explore-v0", generator={"spacing": float("inf")})),
-        ("generator wall_thickness='x'", make("emmi_gym/Explore-v0", generator={"wall_thickness": "x"})),
+        ("generator spacing=inf", make("emmi_gym/Explore-v1", generator={"spacing": float("inf")})),
+        ("generator wall_thickness='x'", make("emmi_gym/Explore-v1", generator={"wall_thickness": "x"})),
         ("egocentric='no'", make(egocentric="no")),
         ("slam={'particles': 5}", make(slam={"particles": 5})),
         ("time_cost='cheap'", make(time_cost="cheap")),
@@ -152,7 +152,7 @@ def cases(folder: Path) -> list[tuple[str, object]]:
         ("odometry alphas 1e300", make(odometry_noise={"rot_from_rot": 1e300})),
         ("slam logodds_step=1e6", make(slam={"logodds_step": 1e6})),
         ("laser range_sigma=inf", make(laser={"range_sigma": float("inf")})),
-        ("generator wall_thickness=nan", make("emmi_gym/Explore-v0", generator={"wall_thickness": float("nan")})),
+        ("generator wall_thickness=nan", make("emmi_gym/Explore-v1", generator={"wall_thickness": float("nan")})),
         ("laser max_range=0.5: map_accuracy",
          make("emmi_gym/ExploreVelocity-v0", reset=True, laser={"max_range": 0.5})),
         # 8. world files
@@ -174,7 +174,7 @@ def cases(folder: Path) -> list[tuple[str, object]]:
                                                         env={"id": "emmi_gym/ExploreVelocity-v0"}))),
         ("MaskablePPO on a velocity env", agent_file(folder, dict(AGENT, env={"id": "emmi_gym/ExploreVelocity-v0"}))),
         ("bad env kwargs with subprocess envs", agent_file(folder, dict(AGENT, n_envs=2, vec_env="subproc",
-                                                                      env={"id": "emmi_gym/LoopCorridor-v0",
+                                                                      env={"id": "emmi_gym/LoopCorridor-v1",
                                                                            "kwargs": {"laser": {"n_beams": -1}}}))),
         ("n_envs: 100000", agent_file(folder, dict(AGENT, n_envs=100000))),
         # 10. logs
@@ -387,7 +387,7 @@ def probe_inputs(folder: Path) -> list[tuple[str, list[str]]]:
     _model_zip(f / "no_data" / "model.zip", {"policy.pth": b"\0" * 100})
     from sb3_contrib import MaskablePPO
 
-    MaskablePPO("MultiInputPolicy", gym.make("emmi_gym/LoopCorridor-v0", particles=3), n_steps=16,
+    MaskablePPO("MultiInputPolicy", gym.make("emmi_gym/LoopCorridor-v1", particles=3), n_steps=16,
                 batch_size=16).save(f / "maskable" / "model.zip")
     _zip_with_huge_member(f / "bomb" / "model.zip", "data", 4 * GIB)
     # 9, 12. streams
@@ -410,7 +410,7 @@ def probe_inputs(folder: Path) -> list[tuple[str, list[str]]]:
     (f / "eval_png.yaml").write_text(yaml.safe_dump(dict(AGENT, eval={"env_kwargs": {"world": str(f / "text.png")}})))
     (f / "x.png").mkdir()
     replay = [*cli, "replay", "--out", str(f / "replay_out")]
-    make_step = ("import gymnasium as gym, emmi_gym; env = gym.make('emmi_gym/Explore-v0', world={!r}); "
+    make_step = ("import gymnasium as gym, emmi_gym; env = gym.make('emmi_gym/Explore-v1', world={!r}); "
                  "env.reset(seed=0); env.step(0); print('stepped')")
     return [
         ("1. 16-bit PNG and PGM (walls at 20000 of 65535) beside the 8-bit plan",

@@ -44,13 +44,29 @@ def test_ids_register_idempotently_and_by_module_string():
     register_envs()
     register_envs()
     assert all(env_id in gym.registry for env_id in IDS)
-    env = gym.make("emmi_gym:LoopCorridor-v0", **SMALL)
+    env = gym.make("emmi_gym:LoopCorridor-v1", **SMALL)
     assert env.unwrapped.config.world == "loop_corridor"
     env.close()
 
 
+@pytest.mark.parametrize("name", ["LoopCorridor", "LoopOrder", "Explore", "ExplorePlans"])
+def test_an_older_version_is_refused_naming_the_current_one(name):
+    """The ids whose episodes changed went up a version; the old one raises Gymnasium's own error and the
+    project's checks of an id (agent configurations, --env-id) say the same in one line."""
+    from emmi_gym.inputs.env_ids import check_env_id
+    from emmi_gym.inputs.errors import FieldError
+
+    with pytest.raises(gym.error.DeprecatedEnv, match=f"Please use `emmi_gym/{name}-v1` instead"):
+        gym.make(f"emmi_gym/{name}-v0")
+    with pytest.raises(FieldError, match=f"expected the current version of emmi_gym/{name}, 'emmi_gym/{name}-v1'"):
+        check_env_id(f"emmi_gym/{name}-v0", "config.yaml", "env.id")
+    assert check_env_id(f"emmi_gym/{name}-v1", "config.yaml", "env.id") == f"emmi_gym/{name}-v1"
+    with pytest.raises(FieldError, match="expected a registered environment id"):
+        check_env_id("emmi_gym/Nothing-v0", "config.yaml", "env.id")
+
+
 def test_spaces_and_info():
-    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env = gym.make("emmi_gym/LoopCorridor-v1", **SMALL)
     obs, info = env.reset(seed=1)
     assert obs["map"].shape == (2, 64, 64) and obs["map"].dtype == np.uint8
     assert env.observation_space.contains(obs)
@@ -69,7 +85,7 @@ def test_spaces_and_info():
         info["reward_components"]["collision"]
     assert reward == pytest.approx(expected)
     assert info["sim_steps_this_step"] > 10 and info["target_kind"] == "frontier"
-    image = gym.make("emmi_gym/LoopCorridor-v0", observation="image", obs_size=48, **SMALL)
+    image = gym.make("emmi_gym/LoopCorridor-v1", observation="image", obs_size=48, **SMALL)
     assert image.observation_space.shape == (2, 48, 48)
 
 
@@ -78,7 +94,7 @@ def test_update_records_list_every_update_and_change_nothing_else():
     the certainty is measured once per step: the same episode, the same figures."""
     runs = []
     for records in (False, True):
-        env = gym.make("emmi_gym/LoopCorridor-v0", update_records=records, **SMALL)
+        env = gym.make("emmi_gym/LoopCorridor-v1", update_records=records, **SMALL)
         _, info = env.reset(seed=3)
         steps = [info]
         for _ in range(2):
@@ -136,7 +152,7 @@ def run(env_id, seed, steps, **options):
 
 def test_same_seed_same_episode():
     assert_same(run("emmi_gym/ExploreVelocity-v0", 3, 50, **SMALL), run("emmi_gym/ExploreVelocity-v0", 3, 50, **SMALL))
-    assert_same(run("emmi_gym/LoopCorridor-v0", 4, 3, **SMALL), run("emmi_gym/LoopCorridor-v0", 4, 3, **SMALL))
+    assert_same(run("emmi_gym/LoopCorridor-v1", 4, 3, **SMALL), run("emmi_gym/LoopCorridor-v1", 4, 3, **SMALL))
     other = run("emmi_gym/ExploreVelocity-v0", 5, 2, **SMALL)
     assert not np.array_equal(other[0][0]["map"], run("emmi_gym/ExploreVelocity-v0", 3, 0, **SMALL)[0][0]["map"])
 
@@ -240,14 +256,14 @@ def test_async_vector_env_and_sb3_subproc_spawn():
 ])
 def test_bad_options_raise_a_clear_error(options, message):
     with pytest.raises(ValueError, match=message):
-        gym.make("emmi_gym/LoopCorridor-v0", **options)
+        gym.make("emmi_gym/LoopCorridor-v1", **options)
 
 
 def test_bad_render_mode_and_reset_option():
     # gymnasium itself warns first that 'screen' is not in metadata["render_modes"]
     with (pytest.raises(ValueError, match=r"render_mode='screen' is not valid"),
           pytest.warns(UserWarning, match="screen")):
-        gym.make("emmi_gym/LoopCorridor-v0", render_mode="screen")
+        gym.make("emmi_gym/LoopCorridor-v1", render_mode="screen")
     env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL)
     with pytest.raises(ValueError, match=r"unknown reset option\(s\) \['speed'\]"):
         env.reset(seed=0, options={"speed": 2})
@@ -258,7 +274,7 @@ def test_bad_render_mode_and_reset_option():
 
 def test_decision_point_offers_the_papers_choice():
     """At the decision point one slot closes the loop (target A, the start) and one enters the new area (B)."""
-    env = gym.make("emmi_gym/LoopCorridor-v0")
+    env = gym.make("emmi_gym/LoopCorridor-v1")
     obs, _ = env.reset(seed=0)
     world, targets = env.unwrapped.world, env.unwrapped.targets
     a, b = world.place("target_a"), world.place("target_b")
@@ -303,7 +319,7 @@ def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
     """Under the default (EMMI) reward, exploring to the coverage target earns more than standing
     still or spinning in place until the step budget runs out (the same budget for all three)."""
     budget = dict(SMALL, max_sim_steps=6000)
-    explore = gym.make("emmi_gym/LoopCorridor-v0", **budget)
+    explore = gym.make("emmi_gym/LoopCorridor-v1", **budget)
     explore.reset(seed=0)
     explore_return, info, terminated = episode_return(explore, frontier_action)
     assert terminated and info["coverage"] >= 0.9
@@ -311,7 +327,7 @@ def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
 
     returns = {}
     for name, command in (("still", (0.0, 0.0)), ("spin", (0.0, 1.0))):
-        env = gym.make("emmi_gym/LoopCorridor-v0", action_mode="velocity", **budget)
+        env = gym.make("emmi_gym/LoopCorridor-v1", action_mode="velocity", **budget)
         env.reset(seed=0)
         returns[name], info, terminated = episode_return(
             env, lambda _, command=command: np.array(command, dtype=np.float32))
@@ -325,7 +341,7 @@ def test_spinning_in_place_farms_emmi_but_not_emmi_coverage():
     the same rise pays little; standing still pays exactly the time cost under every variant."""
     spin, still = {}, {}
     for returns, command in ((spin, (0.0, 1.0)), (still, (0.0, 0.0))):
-        env = gym.make("emmi_gym/ExplorePlans-v0", action_mode="velocity", max_sim_steps=150)
+        env = gym.make("emmi_gym/ExplorePlans-v1", action_mode="velocity", max_sim_steps=150)
         env.reset(seed=0)
         done = False
         while not done:
@@ -399,7 +415,7 @@ def test_the_laser_is_simulated_only_when_the_filter_will_use_it():
 def test_targets_near_a_blocked_attempt_are_not_offered_again():
     from emmi_gym.navigation.candidates import BLOCKED_RADIUS, candidate_slots
 
-    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env = gym.make("emmi_gym/LoopCorridor-v1", **SMALL)
     env.reset(seed=0)
     core = env.unwrapped
     first = next(t for t in core.targets if t is not None)
@@ -411,11 +427,11 @@ def test_targets_near_a_blocked_attempt_are_not_offered_again():
 
 def test_targets_are_offered_again_when_every_one_lies_by_a_blocked_attempt():
     """Better a target where an attempt ended blocked before the map changed than none at all: the robot
-    stood still to the end of the episode (4 of 100 random-action episodes of Explore-v0). Block every
+    stood still to the end of the episode (4 of 100 random-action episodes of Explore-v1). Block every
     target offered until only targets by blocked points are left: those are offered again."""
     from emmi_gym.navigation.candidates import BLOCKED_RADIUS
 
-    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env = gym.make("emmi_gym/LoopCorridor-v1", **SMALL)
     env.reset(seed=0)
     core = env.unwrapped
     for _ in range(30):
@@ -433,11 +449,11 @@ def test_targets_are_offered_again_when_every_one_lies_by_a_blocked_attempt():
 def test_with_no_target_left_the_robot_turns_in_place_and_the_filter_sees_it():
     """move_base's rotate recovery: with every slot empty the robot turns in place for the stay (the
     filter updates on the turns, which cleared the ghost walls that shut the robot in for good in
-    2 of 100 random-action episodes of Explore-v0); an empty slot picked while targets are left
+    2 of 100 random-action episodes of Explore-v1); an empty slot picked while targets are left
     still stands still, so turning (which raises EMMI) is not an action an agent can choose."""
     from emmi_gym.env.actions import STAY_STEPS
 
-    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL)
+    env = gym.make("emmi_gym/LoopCorridor-v1", **SMALL)
     env.reset(seed=0)
     core = env.unwrapped
     n = core.config.n_actions
@@ -565,7 +581,7 @@ def test_coverage_counts_what_the_scans_swept_not_how_the_map_lines_up():
     from emmi_gym import certainty
     from emmi_gym.policies import make_policy
 
-    env = gym.make("emmi_gym/LoopCorridor-v0")
+    env = gym.make("emmi_gym/LoopCorridor-v1")
     policy = make_policy("close_loop_first")
     policy.reset(1)
     env.reset(seed=1)
@@ -587,7 +603,7 @@ def test_coverage_counts_what_the_scans_swept_not_how_the_map_lines_up():
 def test_loop_closing_target_is_reached_without_pushing_into_walls():
     """From the decision point the start lies behind a corner the map has barely seen: the first plan
     cuts through unknown space, and only replanning on the way keeps the robot off the walls."""
-    env = gym.make("emmi_gym/LoopCorridor-v0")  # 15 particles: with 5 the start is not always offered
+    env = gym.make("emmi_gym/LoopCorridor-v1")  # 15 particles: with 5 the start is not always offered
     env.reset(seed=1)
     core = env.unwrapped
     start = core.world.place("target_a")
@@ -603,7 +619,7 @@ def test_loop_closing_target_is_reached_without_pushing_into_walls():
 def test_an_undrivable_route_ends_reset_with_an_error_not_a_hang():
     import dataclasses
 
-    env = gym.make("emmi_gym/LoopCorridor-v0", **SMALL).unwrapped
+    env = gym.make("emmi_gym/LoopCorridor-v1", **SMALL).unwrapped
     world = env._worlds.fixed
     # a route the loader would refuse (it ends inside the outer wall), given to the env directly
     env._worlds.fixed = dataclasses.replace(world, routes={"to_decision": [world.start.xy, (world.start.x, -5.0)]})
@@ -634,7 +650,7 @@ def test_maps_beyond_the_memory_bound_are_refused_with_what_they_would_take():
         set_kernel_threads(1)  # each insertion thread adds its own working memory
         with pytest.raises(MapTooLarge, match=r"1700 x 3500 cells .* for 1000 particles would take 33.4 GiB, above "
                                               r"the bound of 4 GiB"):
-            gym.make("emmi_gym/LoopCorridor-v0", particles=1000, resolution=0.01)
+            gym.make("emmi_gym/LoopCorridor-v1", particles=1000, resolution=0.01)
     finally:
         set_kernel_threads(threads)
 

@@ -36,7 +36,7 @@ SMALL = {"particles": 5, "start_at": "start"}
 
 
 def make(**options):
-    return gym.make("emmi_gym/LoopCorridor-v0", **SMALL, **options).unwrapped
+    return gym.make("emmi_gym/LoopCorridor-v1", **SMALL, **options).unwrapped
 
 
 # ------------------------------------------------------------------ spaces
@@ -193,7 +193,7 @@ def test_an_empty_waypoint_slot_stands_still_and_an_action_out_of_range_is_refus
 
 def _revisits_offered(decisions=4, **options):
     """How many revisit targets each decision offered, taking a revisit whenever one is offered."""
-    env = gym.make("emmi_gym/LoopCorridor-v0", particles=5, max_decisions=decisions, **options).unwrapped
+    env = gym.make("emmi_gym/LoopCorridor-v1", particles=5, max_decisions=decisions, **options).unwrapped
     env.reset(seed=0)
     offered = []
     for _ in range(decisions):

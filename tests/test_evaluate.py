@@ -19,7 +19,7 @@ TINY_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_
 @pytest.fixture(scope="module")
 def tiny_agent(tmp_path_factory):
     run = tmp_path_factory.mktemp("run")
-    data = {"env": {"id": "emmi_gym/Explore-v0", "kwargs": TINY_ENV}, "algorithm": "MaskablePPO",
+    data = {"env": {"id": "emmi_gym/Explore-v1", "kwargs": TINY_ENV}, "algorithm": "MaskablePPO",
             "policy": "MultiInputPolicy",
             "hyperparameters": {"policy_kwargs": {"net_arch": [16]}, "n_steps": 8, "batch_size": 8, "n_epochs": 1},
             "n_envs": 1, "vec_env": "dummy", "total_timesteps": 8, "seed": 3,
@@ -90,7 +90,7 @@ def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path,
     from emmi_gym.training.checkpoint_scores import score_checkpoints
     from emmi_gym.training.evaluate import compare_model
 
-    data = {"env": {"id": "emmi_gym/Explore-v0", "kwargs": TINY_ENV}, "algorithm": "MaskablePPO",
+    data = {"env": {"id": "emmi_gym/Explore-v1", "kwargs": TINY_ENV}, "algorithm": "MaskablePPO",
             "policy": "MultiInputPolicy",
             "hyperparameters": {"policy_kwargs": {"net_arch": [16]}, "n_steps": 4, "batch_size": 4, "n_epochs": 1},
             "n_envs": 1, "vec_env": "dummy", "total_timesteps": 8, "seed": 3,

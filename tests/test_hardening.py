@@ -13,7 +13,7 @@ import yaml
 from emmi_gym.cli import main
 from emmi_gym.training.config import AgentConfigError, load_agent_config
 
-AGENT = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3}}, "algorithm": "PPO",
+AGENT = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3}}, "algorithm": "PPO",
          "policy": "MultiInputPolicy", "hyperparameters": {"n_steps": 16, "batch_size": 16}, "n_envs": 1,
          "vec_env": "dummy"}
 
@@ -52,7 +52,7 @@ def test_policy_kwargs_name_their_classes_by_a_word(tmp_path):
     config = load_agent_config(path)
     kwargs = sb3_policy_kwargs(config.hyperparameters["policy_kwargs"])
     assert kwargs["activation_fn"] is torch.nn.Tanh and kwargs["optimizer_class"] is torch.optim.AdamW
-    model = PPO("MultiInputPolicy", gym.make("emmi_gym/LoopCorridor-v0", particles=3), n_steps=16, batch_size=16,
+    model = PPO("MultiInputPolicy", gym.make("emmi_gym/LoopCorridor-v1", particles=3), n_steps=16, batch_size=16,
                 policy_kwargs=kwargs)
     assert isinstance(model.policy.optimizer, torch.optim.AdamW)
     assert yaml.safe_load(yaml.safe_dump(config.as_yaml_dict()))["hyperparameters"]["policy_kwargs"][

@@ -7,8 +7,8 @@ from emmi_gym.cli import main
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.imitation import Demonstrations, agreement, cloned_model, collect_demonstrations
 
-#: LoopCorridor-v0's waypoint agent, small: 3 particles, 3 decisions an episode.
-CONFIG = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3, "max_decisions": 3}},
+#: LoopCorridor-v1's waypoint agent, small: 3 particles, 3 decisions an episode.
+CONFIG = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},
           "algorithm": "MaskablePPO", "policy": "TargetScoringPolicy",
           "hyperparameters": {"n_steps": 8, "batch_size": 8, "n_epochs": 1}, "n_envs": 1, "vec_env": "dummy",
           "total_timesteps": 8, "seed": 3, "eval": {"freq": 8, "episodes": 1, "seed": 500}}

@@ -100,7 +100,7 @@ def test_deep_nesting_is_refused_naming_the_file_line_and_column(tmp_path):
         load_world(world)  # a map_server file
     (tmp_path / "set").mkdir()
     world.rename(tmp_path / "set" / "deep.yaml")
-    env = gym.make("emmi_gym/Explore-v0", world=str(tmp_path / "set"))
+    env = gym.make("emmi_gym/Explore-v1", world=str(tmp_path / "set"))
     with pytest.raises(WorldFileError, match=r"set/" + deep.replace(":6:", ":4:")):
         env.reset(seed=0)  # a map set draws it at the reset
     agent = tmp_path / "deep.yaml"
@@ -124,7 +124,7 @@ def test_a_chain_of_base_files_is_bounded(tmp_path):
 def test_a_broken_file_named_by_an_env_option_names_the_option_and_the_file(tmp_path):
     (tmp_path / "text.png").write_text("not an image\n")
     agent = tmp_path / "agent.yaml"
-    agent.write_text(yaml.safe_dump({"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3}},
+    agent.write_text(yaml.safe_dump({"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3}},
                                      "algorithm": "PPO", "n_envs": 1, "vec_env": "dummy",
                                      "eval": {"env_kwargs": {"world": str(tmp_path / "text.png")}}}))
     with pytest.raises(AgentConfigError, match=r"agent\.yaml: field 'eval\.env_kwargs\.world': expected an option "

@@ -1,4 +1,4 @@
-"""The loop-order family of worlds, ``LoopOrder-v0``, and the A/B experiment's options and sweep.
+"""The loop-order family of worlds, ``LoopOrder-v1``, and the A/B experiment's options and sweep.
 
 The sweep and the A/B runs here are tiny (two seeds, few particles, few decisions): they check
 what the commands write and that the options reach the env, not what the experiment finds
@@ -74,15 +74,15 @@ def test_pillars_line_the_walls_they_are_asked_for():
 ])
 def test_a_family_option_out_of_range_names_its_field(options, field):
     with pytest.raises(OptionError, match=field):
-        gym.make("emmi_gym/LoopOrder-v0", generator=options)
+        gym.make("emmi_gym/LoopOrder-v1", generator=options)
 
 
 def test_loop_order_passes_the_checker_and_replays_bit_for_bit():
-    env = gym.make("emmi_gym/LoopOrder-v0", **TINY)
+    env = gym.make("emmi_gym/LoopOrder-v1", **TINY)
     check_env(env.unwrapped, skip_render_check=True)
 
     def episode(seed):
-        env = make_agent_env("emmi_gym/LoopOrder-v0", dict(TINY, max_decisions=3))
+        env = make_agent_env("emmi_gym/LoopOrder-v1", dict(TINY, max_decisions=3))
         digest = hashlib.sha256()
         obs, info = env.reset(seed=seed)
         names = (env.unwrapped.world.name, env.unwrapped.world.description)
@@ -104,7 +104,7 @@ def test_loop_order_passes_the_checker_and_replays_bit_for_bit():
 
 
 def test_the_ab_options_reach_the_env():
-    settings = ab_settings("emmi_gym/LoopCorridor-v0", {"laser.max_range": 4.0, "odometry_scale": 2.0,
+    settings = ab_settings("emmi_gym/LoopCorridor-v1", {"laser.max_range": 4.0, "odometry_scale": 2.0,
                                                         "slam.resample_threshold": 1.0, "particles": 5})
     env = settings.experiment_env().unwrapped
     poor = odometry_config("poor")
@@ -116,7 +116,7 @@ def test_the_ab_options_reach_the_env():
 
 def test_ab_plays_loop_order_and_writes_the_runs(tmp_path):
     out = tmp_path / "ab"
-    assert main(["ab", "--env-id", "emmi_gym/LoopOrder-v0", "--seeds", "2", "--particles", "3",
+    assert main(["ab", "--env-id", "emmi_gym/LoopOrder-v1", "--seeds", "2", "--particles", "3",
                  "--max-decisions", "8", "--workers", "1", "--quiet", "--out", str(out)]) == 0
     with open(out / "ab_runs.csv") as f:
         runs = list(csv.DictReader(f))

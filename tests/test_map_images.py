@@ -149,7 +149,7 @@ def test_map_sets_are_drawn_per_seed_and_named_three_ways(tmp_path):
 
 
 def test_explore_draws_plans_from_a_set_deterministically():
-    env = gym.make("emmi_gym/Explore-v0", world="dungeon_maps/test", max_decisions=3)
+    env = gym.make("emmi_gym/Explore-v1", world="dungeon_maps/test", max_decisions=3)
     runs = []
     for _ in range(2):
         _, info = env.reset(seed=11)
@@ -158,13 +158,13 @@ def test_explore_draws_plans_from_a_set_deterministically():
     assert runs[0] == runs[1]
     assert env.reset(seed=12)[1]["world"] != runs[0][0] or env.reset(seed=13)[1]["world"] != runs[0][0]
     with pytest.raises(ValueError, match="start_at='start'"):
-        gym.make("emmi_gym/Explore-v0", world="dungeon_maps/test", start_at="decision")
+        gym.make("emmi_gym/Explore-v1", world="dungeon_maps/test", start_at="decision")
 
 
 def test_a_half_circle_scanner_finds_the_frontier_behind_it():
     """With a 180-degree laser the unseen half behind the robot starts at its own position: the frontier's
     centroid is where the robot stands, so the target is its nearest cell at least a metre away."""
-    env = gym.make("emmi_gym/Explore-v0", world=str(PLAN), laser="sick_lms200")
+    env = gym.make("emmi_gym/Explore-v1", world=str(PLAN), laser="sick_lms200")
     env.reset(seed=0)
     frontiers = [t for t in env.unwrapped.targets if t is not None and t.kind == "frontier"]
     assert frontiers and all(t.travel_cost >= 1.0 for t in frontiers)
@@ -293,10 +293,10 @@ def test_environments_too_large_for_memory_are_refused_with_the_size_allowed(tmp
                     r"particles \(1964 bytes per cell: .*\), above the bound of 4 GiB; at most "
                     f"{4 * 2**30 // 1964:,} cells")
         with pytest.raises(MapTooLarge, match=expected):
-            gym.make("emmi_gym/Explore-v0", world=str(tmp_path / "plan.png"), particles=300)
+            gym.make("emmi_gym/Explore-v1", world=str(tmp_path / "plan.png"), particles=300)
         (tmp_path / "set").mkdir()
         (tmp_path / "plan.png").rename(tmp_path / "set" / "plan.png")
-        env = gym.make("emmi_gym/Explore-v0", world=str(tmp_path / "set"), particles=300)
+        env = gym.make("emmi_gym/Explore-v1", world=str(tmp_path / "set"), particles=300)
         with pytest.raises(MapTooLarge, match=expected.replace("plan", "set/plan")):
             env.reset(seed=0)
     finally:

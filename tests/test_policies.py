@@ -13,7 +13,7 @@ gym.register_envs(emmi_gym)
 @pytest.mark.parametrize("name, first, second", [("close_loop_first", "target_a", "target_b"),
                                                  ("explore_first", "target_b", "target_a")])
 def test_goal_sequences_visit_a_and_b_in_their_order(name, first, second):
-    env = gym.make("emmi_gym/LoopCorridor-v0", particles=5, coverage_target=1.0)
+    env = gym.make("emmi_gym/LoopCorridor-v1", particles=5, coverage_target=1.0)
     env.reset(seed=1)
     policy = make_policy(name)
     policy.reset(1)
@@ -37,7 +37,7 @@ def test_goal_sequences_visit_a_and_b_in_their_order(name, first, second):
 
 
 def test_random_policy_is_seeded_and_valid():
-    env = gym.make("emmi_gym/LoopCorridor-v0", particles=5)
+    env = gym.make("emmi_gym/LoopCorridor-v1", particles=5)
     env.reset(seed=0)
     a, b = make_policy("random"), make_policy("random")
     a.reset(3)
@@ -88,7 +88,7 @@ def test_active_loop_closing_goes_back_when_the_particles_disagree_and_explores_
 
 
 def test_active_loop_closing_runs_on_a_plan():
-    env = gym.make("emmi_gym/ExplorePlans-v0", max_decisions=6)
+    env = gym.make("emmi_gym/ExplorePlans-v1", max_decisions=6)
     policy = make_policy("active_loop_closing")
     env.reset(seed=3)
     policy.reset(3)

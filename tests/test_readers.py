@@ -182,7 +182,7 @@ def test_a_damaged_training_record_names_the_file_and_field(tmp_path, content, e
 
 
 def test_a_damaged_training_record_stops_training_before_it_starts(tmp_path):
-    config = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3, "max_decisions": 3}},
+    config = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},
               "algorithm": "MaskablePPO", "policy": "MultiInputPolicy",
               "hyperparameters": {"n_steps": 4, "batch_size": 4, "n_epochs": 1, "policy_kwargs": {"net_arch": [8]}},
               "n_envs": 1, "vec_env": "dummy", "total_timesteps": 4, "seed": 3, "eval": {"freq": 0},
@@ -208,7 +208,7 @@ def saved_model(tmp_path_factory):
     from stable_baselines3 import PPO
 
     folder = tmp_path_factory.mktemp("model")
-    PPO("MultiInputPolicy", gym.make("emmi_gym/LoopCorridor-v0", particles=3), n_steps=16, batch_size=16,
+    PPO("MultiInputPolicy", gym.make("emmi_gym/LoopCorridor-v1", particles=3), n_steps=16, batch_size=16,
         policy_kwargs={"net_arch": [8]}).save(folder / "model.zip")
     with zipfile.ZipFile(folder / "model.zip") as archive:
         return {name: archive.read(name) for name in archive.namelist()}
@@ -266,7 +266,7 @@ def test_a_model_with_a_bad_crc_is_named_damaged(tmp_path, saved_model, capsys):
     with pytest.raises(ModelFileError, match=rf"{model}: field 'policy\.pth': expected an undamaged member \(its "
                                              r"CRC-32 does not match its data: the file is damaged\)"):
         check_model_file(model, "PPO")
-    (tmp_path / "config.yaml").write_text(yaml.safe_dump({"env": {"id": "emmi_gym/LoopCorridor-v0"},
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump({"env": {"id": "emmi_gym/LoopCorridor-v1"},
                                                           "algorithm": "PPO", "policy": "MultiInputPolicy"}))
     err = one_line_error(capsys, emmi_gym, ["evaluate", str(model), "--episodes", "1"])
     assert "CRC-32 does not match" in err and "wasn't a zip-file" not in err

@@ -51,7 +51,7 @@ def test_agreement_and_correlation_rank_the_better_map_against_the_higher_return
 
 
 def test_kept_steps_add_up_to_the_return_the_env_paid():
-    settings = ComparisonSettings("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 3,
+    settings = ComparisonSettings("emmi_gym/Explore-v1", {"particles": 3, "max_decisions": 3,
                                                           "generator": {"nx": 2, "ny": 2, "n_loops": 1}})
     rows = compare_on([(None, 4)], ["frontier", "random"], settings, workers=1, progress=False, keep_steps=True)
     time_cost = settings.env_on(None).unwrapped.config.time_cost

@@ -18,7 +18,7 @@ from emmi_gym.training.semi_markov import SemiMarkovDiscounts
 from emmi_gym.training.train import latest_checkpoint, make_vec_env, model_of, train
 
 #: A waypoint agent with masks and semi-Markov discounts, whose 3-decision episodes end within a rollout.
-MASKED = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3, "max_decisions": 3}},
+MASKED = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},
           "algorithm": "MaskablePPO", "discount_unit": 100,
           "hyperparameters": {"n_steps": 6, "batch_size": 6, "n_epochs": 1, "policy_kwargs": {"net_arch": [16]}}}
 #: A velocity agent (Box actions, clipped for the env) whose 40-step episodes are truncated within a rollout.

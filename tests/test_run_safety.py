@@ -69,7 +69,7 @@ def test_resume_with_another_configuration_is_refused_before_anything_is_written
     before = {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()}
     for changes, fields in (
         ({"algorithm": "A2C", "hyper": {"n_steps": 8}}, ["algorithm"]),
-        ({"env_id": "emmi_gym/Explore-v0"}, ["env.id"]),
+        ({"env_id": "emmi_gym/Explore-v1"}, ["env.id"]),
         ({"env_extra": {"reward": "coverage"}}, ["env.kwargs.reward"]),
     ):
         other = tmp_path / "other.yaml"
@@ -155,7 +155,7 @@ def test_init_from_is_checked_against_the_configuration_and_says_what_will_train
     )
 
     waypoint = tmp_path / "waypoint.yaml"  # the same algorithm and policy, another env id
-    agent_file(waypoint, timesteps=16, env_id="emmi_gym/Explore-v0", env_extra={"max_decisions": 4})
+    agent_file(waypoint, timesteps=16, env_id="emmi_gym/Explore-v1", env_extra={"max_decisions": 4})
     assert cli(["train", waypoint, "--out", tmp_path / "plans", "--quiet"], capsys)[0] == 0
     code, _, err = cli(
         [
@@ -173,7 +173,7 @@ def test_init_from_is_checked_against_the_configuration_and_says_what_will_train
     assert (
         code == 2
         and (
-            f"a model of emmi_gym/Explore-v0 (its configuration {tmp_path / 'plans' / 'config.yaml'}),"
+            f"a model of emmi_gym/Explore-v1 (its configuration {tmp_path / 'plans' / 'config.yaml'}),"
             f" but {config} trains on emmi_gym/ExploreVelocity-v0"
         )
         in err
@@ -247,7 +247,7 @@ def test_cloning_stops_at_a_non_finite_loss_and_writes_no_model(tmp_path):
     [
         ("PPO", "MultiInputPolicy", "emmi_gym/ExploreVelocity-v0", {}),
         ("PPO", "CnnPolicy", "emmi_gym/ExploreVelocity-v0", {"observation": "image"}),
-        ("MaskablePPO", "TargetScoringPolicy", "emmi_gym/LoopCorridor-v0", {}),
+        ("MaskablePPO", "TargetScoringPolicy", "emmi_gym/LoopCorridor-v1", {}),
     ],
 )
 def test_every_policy_builds_and_acts_at_the_bounds_of_obs_size(algorithm, policy, env_id, env_kwargs, obs_size):
@@ -269,7 +269,7 @@ def test_every_policy_builds_and_acts_at_the_bounds_of_obs_size(algorithm, polic
 
 def test_obs_size_below_what_the_cnn_takes_is_refused():
     with pytest.raises(ValueError, match=r"field 'obs_size': expected an integer in \[36, 256\]"):
-        gym.make("emmi_gym/LoopCorridor-v0", obs_size=35)
+        gym.make("emmi_gym/LoopCorridor-v1", obs_size=35)
 
 
 def test_an_interrupted_write_leaves_the_old_file(tmp_path):

@@ -84,7 +84,7 @@ def test_buffer_class_per_algorithm_and_observation():
     ({"hyperparameters": {"rollout_buffer_kwargs": {}}}, "hyperparameters.rollout_buffer_kwargs", "not given with"),
 ])
 def test_bad_discount_unit_is_a_clear_error(change, field, expected):
-    data = {"env": {"id": "emmi_gym/LoopCorridor-v0"}, "algorithm": "MaskablePPO", "discount_unit": 100, **change}
+    data = {"env": {"id": "emmi_gym/LoopCorridor-v1"}, "algorithm": "MaskablePPO", "discount_unit": 100, **change}
     with pytest.raises(AgentConfigError) as error:
         parse_agent_config(data, source="agent.yaml")
     assert error.value.field == field and expected in str(error.value)
@@ -103,7 +103,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
             durations.append(self.locals["infos"][0]["sim_steps_this_step"])
             return True
 
-    env = make_agent_env("emmi_gym/LoopCorridor-v0", {"particles": 3, "max_decisions": 4})
+    env = make_agent_env("emmi_gym/LoopCorridor-v1", {"particles": 3, "max_decisions": 4})
     model = MaskablePPO("MultiInputPolicy", env, n_steps=8, batch_size=8, n_epochs=1, gamma=GAMMA, seed=1,
                         policy_kwargs={"net_arch": [16]}, rollout_buffer_class=SemiMarkovMaskableDictRolloutBuffer)
     model.learn(8, callback=[Durations(), SemiMarkovDiscounts(UNIT)])
@@ -115,7 +115,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
 def test_train_command_uses_the_configured_discount_unit(tmp_path):
     from emmi_gym.training.evaluate import evaluate_model
 
-    data = {"env": {"id": "emmi_gym/LoopCorridor-v0", "kwargs": {"particles": 3, "max_decisions": 2}},
+    data = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 2}},
             "algorithm": "MaskablePPO", "hyperparameters": {"n_steps": 4, "batch_size": 4, "n_epochs": 1,
                                                             "policy_kwargs": {"net_arch": [16]}},
             "discount_unit": UNIT, "n_envs": 1, "vec_env": "dummy", "total_timesteps": 4, "seed": 1,

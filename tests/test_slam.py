@@ -87,13 +87,13 @@ def test_loop_closure_shows_in_emmi_and_neff(loop_runs):
 
 @pytest.fixture(scope="module")
 def corridor_env_runs():
-    """The loop with the sensors LoopCorridor-v0 registers: a SICK LMS200 at 8 m, poor odometry."""
+    """The loop with the sensors LoopCorridor-v1 registers: a SICK LMS200 at 8 m, poor odometry."""
     laser, odometry = laser_config({"preset": "sick_lms200", "max_range": 8.0}), odometry_config("poor")
     return [(laser,) + loop_run(seed, laser=laser, odometry=odometry) for seed in SEEDS]
 
 
 def test_hypotheses_survive_the_open_loop_and_collapse_when_it_closes(corridor_env_runs):
-    """The paper's Fig. 6 with LoopCorridor-v0's sensors (the fast version of ``benchmarks/slam_accuracy.py
+    """The paper's Fig. 6 with LoopCorridor-v1's sensors (the fast version of ``benchmarks/slam_accuracy.py
     --laser '{"preset": "sick_lms200", "max_range": 8.0}' --odometry poor``, whose 20 seeds give 15, 20
     and 17 of 20 for the three counts): no resampling before the loop closes, Neff falls or the set
     resamples as it closes, and EMMI's largest rise of the loop's second half comes with the closure."""

@@ -62,7 +62,7 @@ def logits(model, obs):
 
 
 def test_a_slot_scores_its_row_wherever_it_lands():
-    env = gym.make("emmi_gym/LoopCorridor-v0", particles=5)
+    env = gym.make("emmi_gym/LoopCorridor-v1", particles=5)
     model = policy_on(env)
     obs, _ = env.reset(seed=0)
     before = logits(model, obs)
@@ -93,13 +93,13 @@ def test_it_learns_to_follow_a_target_from_slot_to_slot():
 
 
 def test_it_is_for_maskable_ppo_on_the_waypoint_observation():
-    data = {"env": {"id": "emmi_gym/LoopCorridor-v0"}, "algorithm": "PPO", "policy": "TargetScoringPolicy"}
+    data = {"env": {"id": "emmi_gym/LoopCorridor-v1"}, "algorithm": "PPO", "policy": "TargetScoringPolicy"}
     with pytest.raises(AgentConfigError, match="policy.*only with algorithm MaskablePPO"):
         parse_agent_config(data)
     assert parse_agent_config(dict(data, algorithm="MaskablePPO")).policy == "TargetScoringPolicy"
-    image = gym.make("emmi_gym/LoopCorridor-v0", particles=5, observation="image")
+    image = gym.make("emmi_gym/LoopCorridor-v1", particles=5, observation="image")
     with pytest.raises(ValueError, match="waypoint Dict observation"):
         policy_on(image)
     with pytest.raises(ValueError, match="fixes 'net_arch'"):
-        MaskablePPO(TargetScoringPolicy, gym.make("emmi_gym/LoopCorridor-v0", particles=5),
+        MaskablePPO(TargetScoringPolicy, gym.make("emmi_gym/LoopCorridor-v1", particles=5),
                     policy_kwargs={"net_arch": [32]}, device="cpu")

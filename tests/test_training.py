@@ -60,7 +60,7 @@ def test_each_algorithm_trains_saves_resumes_and_evaluates(algorithm, tmp_path):
 
 def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
     data = config_dict("MaskablePPO", {"max_decisions": 3}, {"n_steps": 8, "batch_size": 8, "n_epochs": 1},
-                       timesteps=8, env_id="emmi_gym/LoopCorridor-v0")
+                       timesteps=8, env_id="emmi_gym/LoopCorridor-v1")
     data["env"]["kwargs"] = {"particles": 3, "max_decisions": 3}
     data["eval"] = {"freq": 4, "episodes": 1, "seed": 500, "env_kwargs": {"max_decisions": 1}}
     result = train(parse_agent_config(data), tmp_path, progress=False)
@@ -335,13 +335,13 @@ def test_training_torch_threads_leave_the_cores_to_env_subprocesses_only():
 
 def test_shipped_configurations_load_and_variants_differ_only_in_reward():
     emmi = load_agent_config("agents/ppo_emmi.yaml")
-    assert emmi.algorithm == "MaskablePPO" and emmi.env_id == "emmi_gym/LoopCorridor-v0"
+    assert emmi.algorithm == "MaskablePPO" and emmi.env_id == "emmi_gym/LoopCorridor-v1"
     for reward in ("pose_entropy", "joint_entropy", "coverage"):
         variant = load_agent_config(f"agents/ppo_{reward}.yaml")
         assert variant.env_kwargs == dict(emmi.env_kwargs, reward=reward)
         assert variant.hyperparameters == emmi.hyperparameters and variant.total_timesteps == emmi.total_timesteps
     plans = load_agent_config("agents/ppo_plans_emmi.yaml")
-    assert plans.env_id == "emmi_gym/ExplorePlans-v0" and plans.policy == emmi.policy and plans.discount_unit == 100
+    assert plans.env_id == "emmi_gym/ExplorePlans-v1" and plans.policy == emmi.policy and plans.discount_unit == 100
     assert plans.eval_env_kwargs == dict(plans.env_kwargs, world="dungeon_maps/test")  # held-out plans
     assert load_agent_config("agents/dqn_emmi.yaml").algorithm == "DQN"
     assert load_agent_config("agents/sac_velocity_emmi.yaml").algorithm == "SAC"
@@ -351,10 +351,10 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
 @pytest.mark.parametrize("change, field, expected", [
     ({"algorithm": "TRPO"}, "algorithm", "one of ['PPO'"),
     ({"learning_rat": 1}, "learning_rat", "one of the fields"),
-    ({"env": {"id": "CartPole-v1"}}, "env.id", "emmi_gym/LoopCorridor-v0"),
-    ({"env": {"id": "emmi_gym/Explore-v0", "kwargs": {"rewad": "emmi"}}}, "env.kwargs.rewad",
+    ({"env": {"id": "CartPole-v1"}}, "env.id", "emmi_gym/LoopCorridor-v1"),
+    ({"env": {"id": "emmi_gym/Explore-v1", "kwargs": {"rewad": "emmi"}}}, "env.kwargs.rewad",
      "one of the known options"),
-    ({"env": {"id": "emmi_gym/Explore-v0", "kwargs": {"laser": {"n_beams": "many"}}}}, "env.kwargs.laser.n_beams",
+    ({"env": {"id": "emmi_gym/Explore-v1", "kwargs": {"laser": {"n_beams": "many"}}}}, "env.kwargs.laser.n_beams",
      "an integer in [1, 10000]"),
     ({"hyperparameters": {"n_stepz": 4}}, "hyperparameters.n_stepz", "a keyword of PPO"),
     ({"hyperparameters": {"learning_rate": "fast"}}, "hyperparameters.learning_rate", "a finite number in (0, 1]"),
@@ -369,8 +369,8 @@ def test_shipped_configurations_load_and_variants_differ_only_in_reward():
     ({"eval": {"env_kwargs": {"rewad": "emmi"}}}, "eval.env_kwargs.rewad", "one of the known options"),
     ({"eval": {"env_kwargs": {"obs_size": 48}}}, "eval.env_kwargs",
      "options that keep the training env's action and observation spaces"),
-    ({"algorithm": "SAC", "hyperparameters": {}, "env": {"id": "emmi_gym/LoopCorridor-v0"}}, "algorithm",
-     "an algorithm for the Discrete actions of emmi_gym/LoopCorridor-v0 (one of ['PPO', 'A2C', 'MaskablePPO', 'DQN'])"),
+    ({"algorithm": "SAC", "hyperparameters": {}, "env": {"id": "emmi_gym/LoopCorridor-v1"}}, "algorithm",
+     "an algorithm for the Discrete actions of emmi_gym/LoopCorridor-v1 (one of ['PPO', 'A2C', 'MaskablePPO', 'DQN'])"),
     ({"algorithm": "DQN", "hyperparameters": {}, "env": {"id": "emmi_gym/ExploreVelocity-v0"}}, "algorithm",
      "an algorithm for the Box actions of emmi_gym/ExploreVelocity-v0 (one of ['PPO', 'A2C', 'SAC'])"),
     ({"policy": "CnnPolicy"}, "policy", "a policy for the Dict observations"),
@@ -408,13 +408,13 @@ def test_cli_errors_are_messages(tmp_path, capsys):
 def _tiny_benchmark(tmp_path, **kwargs):
     config = parse_agent_config(config_dict("PPO", {"max_decisions": 4}, {"n_steps": 16, "batch_size": 16,
                                                                           "n_epochs": 1},
-                                            env_id="emmi_gym/Explore-v0"))
+                                            env_id="emmi_gym/Explore-v1"))
     results = run_benchmark(config, ["emmi", "coverage"], range(1), 16, 1, ["frontier"], tmp_path, progress=False,
                             **kwargs)
     files = write_benchmark(results, tmp_path, "tiny")
     summary = files["summary"].read_text()
     assert "| emmi (1 agents) |" in summary and "| frontier (scripted) |" in summary
-    # Explore-v0 has no loop order, and 4 decisions reach no coverage target: columns without a value are left out
+    # Explore-v1 has no loop order, and 4 decisions reach no coverage target: columns without a value are left out
     unmeasured = (LOOP_ORDER_KEY, "sim_steps_to_target")
     assert all((label in summary) != (column in unmeasured) for column, label in TABLE_COLUMNS.items())
     with open(files["episodes"]) as f:
@@ -553,7 +553,7 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
 
     from emmi_gym.experiments.ab import closed_loop_first, new_area_now
 
-    env = gym.make("emmi_gym/LoopCorridor-v0", particles=3)
+    env = gym.make("emmi_gym/LoopCorridor-v1", particles=3)
     env.reset(seed=0)
     core = env.unwrapped
     new_area = new_area_now(core)
@@ -573,7 +573,7 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
 def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(policy, expected):
     from emmi_gym.policies import make_policy
 
-    env = make_agent_env("emmi_gym/LoopCorridor-v0", {"particles": 3, "max_decisions": 2})
+    env = make_agent_env("emmi_gym/LoopCorridor-v1", {"particles": 3, "max_decisions": 2})
     scripted = make_policy(policy)
     scripted.reset(7)
     env.reset(seed=7)
@@ -584,7 +584,7 @@ def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(poli
         done = terminated or truncated
     assert all("closed_loop_first" not in i for i in infos[:-1])
     assert infos[-1]["closed_loop_first"] == expected
-    explore = make_agent_env("emmi_gym/Explore-v0", {"particles": 3, "max_decisions": 1})
+    explore = make_agent_env("emmi_gym/Explore-v1", {"particles": 3, "max_decisions": 1})
     explore.reset(seed=0)
     assert "closed_loop_first" not in explore.step(0)[4]   # no decision point: nothing to report
 

@@ -2,8 +2,8 @@
 
     python docs/_scripts/render_env_previews.py [--out docs/envs] [--seed 0] [--decisions 12] [--steps 600]
 
-Waypoint ids: after ``reset`` and ``--decisions`` decisions of the frontier policy (ExplorePlans-v0: 40;
-LoopCorridor-v0: right after ``reset``, at the decision point); the velocity id: after ``--steps`` steps driving ahead
+Waypoint ids: after ``reset`` and ``--decisions`` decisions of the frontier policy (ExplorePlans-v1: 40;
+LoopCorridor-v1: right after ``reset``, at the decision point); the velocity id: after ``--steps`` steps driving ahead
 and turning. Left: the true world, the robot (red) and its true path (green); right: the expected
 map, the particles (blue) and the best particle's path (orange).
 """
@@ -28,7 +28,7 @@ from emmi_gym.policies import make_policy  # noqa: E402
 gym.register_envs(emmi_gym)
 
 #: Decisions before the picture where the default is too few to show the world.
-DECISIONS = {"ExplorePlans-v0": 40}
+DECISIONS = {"ExplorePlans-v1": 40}
 
 
 def preview(name: str, seed: int, decisions: int, steps: int) -> np.ndarray:

@@ -28,8 +28,8 @@ def add_demo_parser(subparsers) -> None:
 
 def _add_options(parser: argparse.ArgumentParser, seeds: int, particles: int, out: str) -> None:
     arguments.add_seed_range(parser, seeds, least=2)  # intervals need two seeds
-    parser.add_argument("--env-id", default="emmi_gym/LoopCorridor-v0",
-                        help="the env played from its decision point (default emmi_gym/LoopCorridor-v0)")
+    parser.add_argument("--env-id", default="emmi_gym/LoopCorridor-v1",
+                        help="the env played from its decision point (default emmi_gym/LoopCorridor-v1)")
     parser.add_argument("--world", default=None,
                         help="built-in world or .yaml with places decision, target_a, target_b and a to_decision "
                              "route, or 'loop_order' (a generated world per seed; default: the env's)")
@@ -87,10 +87,12 @@ def run(args: argparse.Namespace) -> int:
     from ..experiments.ab import check_world
     from ..experiments.report import summary_rows, summary_table
     from ..experiments.sweep import ab_settings, read_sweep, run_sweep, setting_label
+    from ..inputs.env_ids import check_env_id
     from ..inputs.paths import output_folder
     from ..world import load_world
     from ..world.map_sets import WORLD_FAMILIES
 
+    check_env_id(args.env_id, "command line", "--env-id")
     output_folder(args.out)
     started = time.perf_counter()
     if args.sweep is not None:

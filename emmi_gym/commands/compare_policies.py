@@ -20,8 +20,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--plans", type=arguments.integer(1, arguments.MAX_EPISODES), default=50,
                         help="maps taken from each map set (default 50)")
     arguments.add_seed_range(parser, seeds=1)
-    parser.add_argument("--env-id", default="emmi_gym/ExplorePlans-v0",
-                        help="the environment id (default emmi_gym/ExplorePlans-v0)")
+    parser.add_argument("--env-id", default="emmi_gym/ExplorePlans-v1",
+                        help="the environment id (default emmi_gym/ExplorePlans-v1)")
     parser.add_argument("--options", default="{}", help="JSON object of further gym.make options")
     parser.add_argument("--policies", nargs=2, default=["frontier", "active_loop_closing"],
                         metavar=("BASELINE", "POLICY"), help="default: frontier active_loop_closing")
@@ -34,7 +34,7 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
-    from ..env import ENV_IDS, EnvConfig
+    from ..env import EnvConfig
     from ..experiments.comparison import (
         ComparisonSettings,
         compare,
@@ -44,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
         worlds_of,
     )
     from ..experiments.report import write_csv
+    from ..inputs.env_ids import check_env_id
     from ..inputs.json_files import parse_json
     from ..inputs.paths import output_folder
     from ..inputs.validation import build
@@ -53,9 +54,7 @@ def run(args: argparse.Namespace) -> int:
     if not isinstance(options, dict):
         raise ValueError(f"--options: expected a JSON object of options ({{\"name\": value, ...}}), got "
                          f"{args.options[:80]!r}")
-    if args.env_id not in gym.registry:
-        raise ValueError(f"--env-id: no environment {args.env_id!r} is registered (emmi-gym's: "
-                         f"{', '.join(f'emmi_gym/{name}' for name in ENV_IDS)})")
+    check_env_id(args.env_id, "command line", "--env-id")
     unknown = sorted(set(args.policies) - set(POLICY_NAMES))
     if unknown:
         raise ValueError(f"--policies: unknown {unknown}; choose from {list(POLICY_NAMES)}")

@@ -35,7 +35,7 @@ class ABSettings:
     one), ``particles`` and ``max_decisions`` (and the metrics of every filter update,
     ``update_records``, for the per-update curves)."""
 
-    env_id: str = "emmi_gym/LoopCorridor-v0"
+    env_id: str = "emmi_gym/LoopCorridor-v1"
     particles: int = 15
     max_decisions: int = 40
     env_options: dict = field(default_factory=dict)

@@ -44,7 +44,7 @@ NO_BETTER = ("revisit_share", LOOP_ORDER_KEY, "decisions", "sim_steps")
 class ComparisonSettings:
     """The environment every episode runs in (``world`` is set per episode)."""
 
-    env_id: str = "emmi_gym/ExplorePlans-v0"
+    env_id: str = "emmi_gym/ExplorePlans-v1"
     env_options: dict = field(default_factory=dict)
 
     def env_on(self, world) -> gym.Env:

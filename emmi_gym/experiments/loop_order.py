@@ -20,7 +20,7 @@ def hosts_loop_experiment(core) -> bool:
 
 class LoopOrderInfo(gym.Wrapper):
     """Adds ``info["closed_loop_first"]`` to the last step of an episode that starts at a loop's
-    decision point (``LoopCorridor-v0``): 1.0 if the true path came back to the loop's start
+    decision point (``LoopCorridor-v1``): 1.0 if the true path came back to the loop's start
     before it entered the new area (the paper's A), 0.0 if it entered the new area first (B),
     NaN if it did neither. The new area is what the expected map had not observed at the reset,
     and only the path driven after the reset counts (the reset's drive to the decision point

@@ -3,7 +3,7 @@ the map?
 
 A sweep file (YAML, read with the bounded reader)::
 
-    env_id: emmi_gym/LoopCorridor-v0      # optional; the env whose defaults the settings change
+    env_id: emmi_gym/LoopCorridor-v1      # optional; the env whose defaults the settings change
     seeds: 20                             # per setting (A and B each)
     first_seed: 0
     options:                              # env options of every setting (dotted names reach into dicts)
@@ -35,6 +35,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from ..inputs.env_ids import check_env_id
 from ..inputs.errors import FieldError
 from ..inputs.validation import Integer, Mapping, Maybe, OptionError, Text, Tuple, build, check_fields, option
 from ..inputs.yaml_files import read_yaml_file
@@ -71,7 +72,7 @@ class SweepFileError(FieldError):
 class SweepConfig:
     """A sweep file's fields (see the module's docstring)."""
 
-    env_id: str = option("emmi_gym/LoopCorridor-v0", Text(), help="the env whose defaults the settings change")
+    env_id: str = option("emmi_gym/LoopCorridor-v1", Text(), help="the env whose defaults the settings change")
     seeds: int = option(20, Integer(2, MAX_SEEDS), help="seeds per setting (intervals need two)")
     first_seed: int = option(0, Integer(0, 2**32 - 1), help="the first seed")
     particles: int = option(15, Integer(1, 1000), help="particles where no setting names them")
@@ -154,9 +155,7 @@ def read_sweep(path) -> Sweep:
     source = str(path)
     data = read_yaml_file(path, "sweep file", SweepFileError)
     config = build(SweepConfig, data, "", source=source, error=SweepFileError)
-    if config.env_id not in gym.registry:
-        raise SweepFileError(source, "env_id", "a registered env id (emmi_gym/LoopCorridor-v0, "
-                             "emmi_gym/LoopOrder-v0, ...)", config.env_id)
+    check_env_id(config.env_id, source, "env_id", SweepFileError)
     for key, values in config.grid.items():
         if not isinstance(values, list) or not values:
             raise SweepFileError(source, f"grid.{key}", "a non-empty list of values", values)

@@ -97,7 +97,7 @@ class GroundTruthEvalMixin(OnRunSchedule):
     """For an SB3 ``EvalCallback``: every evaluation runs the same held-out episodes (the eval env is
     reseeded with ``eval_seed`` first) and logs the mean of each ground-truth measure at the
     episodes' ends as ``eval/<measure>`` (TensorBoard and stdout), appending them to
-    ``ground_truth_csv``; on ``LoopCorridor-v0`` also the fraction of episodes that closed the
+    ``ground_truth_csv``; on ``LoopCorridor-v1`` also the fraction of episodes that closed the
     loop before entering the new area, ``eval/closed_loop_first`` (episodes that did neither
     left out). SB3's own files (``evaluations.npz`` in ``log_path``, ``best_model.zip`` in
     ``best_model_save_path``) are written into a staging folder, :data:`STAGING`, and renamed into

@@ -19,6 +19,7 @@ import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from ..inputs.env_ids import check_env_id
 from ..inputs.errors import FieldError
 from ..inputs.validation import (
     Boolean,
@@ -373,13 +374,10 @@ def _vec_env(source: str, algorithm: str, value) -> str:
 def _env_field(data: dict, source: str) -> tuple[str, dict]:
     """The env id and keywords of a configuration's ``env`` field, checked as far as a configuration can
     without making the env."""
-    from ..env import ENV_IDS
-
     env = data.get("env")
     if not isinstance(env, dict) or not isinstance(env.get("id"), str) or set(env) - {"id", "kwargs"}:
         raise AgentConfigError(source, "env", "a mapping with an 'id' (and optional 'kwargs')", env)
-    env_id = check_value(env["id"], Choice(tuple(f"emmi_gym/{name}" for name in ENV_IDS)), source, "env.id",
-                         AgentConfigError)
+    env_id = check_env_id(env["id"], source, "env.id", AgentConfigError)
     return env_id, dict(check_value(env.get("kwargs") or {}, Mapping(), source, "env.kwargs", AgentConfigError))
 
 

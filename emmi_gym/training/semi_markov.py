@@ -4,7 +4,7 @@ A waypoint action lasts anything from one simulator step (a target found blocked
 to hundreds (a drive round a corridor). Discounting once per *decision*, as SB3 does,
 makes time spent in many short hops cheaper than the same time spent in one long drive,
 and lets an agent postpone every cost by spending decisions that take no time. On
-``LoopCorridor-v0`` that alone made nearest-frontier hopping (about 20 decisions) score
+``LoopCorridor-v1`` that alone made nearest-frontier hopping (about 20 decisions) score
 above closing the loop (one 350-step drive) under the EMMI reward, although the loop
 closure earns more EMMI per unit of robot time (``benchmarks/reward_returns.py``).
 
