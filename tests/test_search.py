@@ -27,10 +27,10 @@ def dijkstra_twin(costs: np.ndarray, start: tuple[int, int]) -> np.ndarray:
         for dr, dc in _search.OFFSETS:
             rr, cc = r + dr, c + dc
             if 0 <= rr < h and 0 <= cc < w and np.isfinite(costs[rr, cc]):
-                nd = d + (costs[r, c] + costs[rr, cc]) / 2 * math.hypot(dr, dc)
-                if nd < best[rr, cc]:
-                    best[rr, cc] = nd
-                    heapq.heappush(queue, (nd, (rr, cc)))
+                candidate = d + (costs[r, c] + costs[rr, cc]) / 2 * math.hypot(dr, dc)
+                if candidate < best[rr, cc]:
+                    best[rr, cc] = candidate
+                    heapq.heappush(queue, (candidate, (rr, cc)))
     return best
 
 
