@@ -66,7 +66,7 @@ def test_compare_policies_command_writes_the_paired_table_episodes_and_maps(tmp_
     (["--options", "[1]"], "--options: expected a JSON object of options"),
     (["--options", "{"], "--options"),
     (["--options", '{"max_decisions": -1}'], "max_decisions"),
-    (["--env-id", "emmi_gym/Nope-v0"], "'--env-id': expected a registered environment id"),
+    (["--env-id", "emmi_gym/Nope-v0"], "'--env-id': expected one of emmi-gym's environment ids"),
     (["--env-id", "emmi_gym/ExplorePlans-v0"], "expected the current version of emmi_gym/ExplorePlans, "
                                                "'emmi_gym/ExplorePlans-v1'"),
     (["--policies", "frontier", "nope"], "--policies: unknown ['nope']"),

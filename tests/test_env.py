@@ -61,7 +61,7 @@ def test_an_older_version_is_refused_naming_the_current_one(name):
     with pytest.raises(FieldError, match=f"expected the current version of emmi_gym/{name}, 'emmi_gym/{name}-v1'"):
         check_env_id(f"emmi_gym/{name}-v0", "config.yaml", "env.id")
     assert check_env_id(f"emmi_gym/{name}-v1", "config.yaml", "env.id") == f"emmi_gym/{name}-v1"
-    with pytest.raises(FieldError, match="expected a registered environment id"):
+    with pytest.raises(FieldError, match="expected one of emmi-gym's environment ids"):
         check_env_id("emmi_gym/Nothing-v0", "config.yaml", "env.id")
 
 
