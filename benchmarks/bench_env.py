@@ -130,9 +130,11 @@ def bench(env_id: str, n_steps: int, options: dict, with_resets: bool) -> tuple[
 
 
 def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: int | None, options: dict) -> None:
-    """The same episodes played by this code and by the code in ``code`` (a checkout of another commit), in
-    two processes that take turns, one env step each: whatever the machine does meanwhile slows both alike.
-    Prints the ratio of their times. Each process first plays the steps once untimed (both at once): a fresh
+    """The same steps (the same seeds and action draws) played by this code and by the code in ``code`` (a
+    checkout of another commit), in two processes that take turns, one env step each: whatever the machine
+    does meanwhile slows both alike. Prints the ratio of their times, and each code's simulator steps per
+    second (the robot time it simulates: where the codes' episodes differ, their decisions may drive
+    farther or less far). Each process first plays the steps once untimed (both at once): a fresh
     checkout compiles each numba kernel on its first call, which may come late in an episode (a first
     resampling), and once made a fresh worktree look four times slower."""
     if not (Path(code) / "emmi_gym" / "__init__.py").is_file():  # else the worker would import this code
@@ -149,7 +151,7 @@ def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: in
         if not worker.stdout.readline():
             raise SystemExit(f"the worker running {env_id} with the code in "
                              f"{'this checkout' if w == 0 else code} stopped while warming up")
-    times = np.zeros((2, n_steps))
+    times, sim_steps = np.zeros((2, n_steps)), np.zeros((2, n_steps))
     for k in range(n_steps):
         for w, worker in enumerate(workers):
             worker.stdin.write("step\n")
@@ -158,14 +160,16 @@ def against(env_id: str, n_steps: int, code: str, with_resets: bool, threads: in
             if not line:  # it stopped: its traceback went to stderr
                 raise SystemExit(f"the worker running {env_id} with the code in "
                                  f"{'this checkout' if w == 0 else code} stopped at step {k}")
-            times[w, k] = float(line)
+            times[w, k], sim_steps[w, k] = map(float, line.split())
     for worker in workers:
         worker.stdin.close()
         worker.wait()
     this, other = times.sum(axis=1)
+    this_rate, other_rate = sim_steps.sum(axis=1) / times.sum(axis=1)
     what = "env steps and the resets after episodes' last steps" if with_resets else "env steps"
     print(f"{env_id}: {n_steps} {what} in {this:.1f} s with this code ({n_steps / this:.2f}/s), {other:.1f} s "
-          f"with {code} ({n_steps / other:.2f}/s): {other / this:.2f} times as fast"
+          f"with {code} ({n_steps / other:.2f}/s): {other / this:.2f} times as fast; simulator steps/s "
+          f"{this_rate:.0f} and {other_rate:.0f} ({this_rate / other_rate:.2f} times)"
           f"{f' (kernels on {threads} thread(s))' if threads else ''}")
 
 
@@ -183,7 +187,7 @@ def registered_version(env_id: str) -> str:
 
 def worker(env_id: str, with_resets: bool, options: dict) -> None:
     """The other end of :func:`against`: "warm N" plays N steps untimed and starts the episodes again;
-    "step" plays one step and writes its wall time back."""
+    "step" plays one step and writes its wall time and simulator steps back."""
     env_id = registered_version(env_id)
     episodes = play(env_id, options, with_resets)
     for line in sys.stdin:
@@ -194,7 +198,8 @@ def worker(env_id: str, with_resets: bool, options: dict) -> None:
             episodes = play(env_id, options, with_resets)
             print("warm", flush=True)
         else:
-            print(next(episodes)[0], flush=True)
+            wall, sims, _ = next(episodes)
+            print(wall, sims, flush=True)
 
 
 def report(env_id: str, n_steps: int, repeats: int, options: dict, with_resets: bool) -> None:
@@ -209,6 +214,7 @@ def report(env_id: str, n_steps: int, repeats: int, options: dict, with_resets: 
           f"update ({n_steps} env steps, {sim_steps} simulator steps, {updates} filter updates, "
           f"{wall:.1f} s of step(){' and resets' if with_resets else ''} in the median run)")
     print("  time share: " + ", ".join(f"{k} {100 * v / wall:.0f}%" for k, v in spent.items()))
+    print("  ms per env step: " + ", ".join(f"{k} {1e3 * v / n_steps:.1f}" for k, v in spent.items()))
 
 
 def main() -> None:
