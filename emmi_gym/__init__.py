@@ -8,7 +8,7 @@ Importing the package registers the environments and makes the shipped agents av
     env = gym.make("emmi_gym/LoopCorridor-v1")
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 
 def _register() -> None:

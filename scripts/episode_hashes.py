@@ -4,6 +4,14 @@ A refactoring that must not change behaviour prints the same hashes before and a
 
     python scripts/episode_hashes.py > after.txt     # and the same on the code before
 
+A change that does change an id's episodes gives that id a new version (as Gymnasium does); compare
+the two codes' lines by name, without the version, to see which ids changed::
+
+    diff <(sed 's/-v[0-9]* / /' before.txt) <(sed 's/-v[0-9]* / /' after.txt)
+
+(0.2.0's planner changed the four waypoint ids, now -v1; ``ExploreVelocity-v0`` and the replay kept
+their hashes.)
+
 Each line is ``<what> <sha256 of every observation, reward, flag and numeric info value>``.
 Only the public Gymnasium API and the ``emmi-gym replay`` command are used, so the script
 runs unchanged on any version of the package.
