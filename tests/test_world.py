@@ -259,6 +259,18 @@ def test_beams_past_max_range_read_max_range_and_drops():
     assert dropped == pytest.approx(0.2, abs=0.04)
 
 
+def test_noisy_ranges_kernel_matches_its_numpy_twin():
+    from emmi_gym.world.laser import _noisy_ranges
+
+    rng = np.random.default_rng(4)
+    true = np.concatenate([rng.uniform(0.0, 8.0, 200), np.full(20, 8.0), [0.01, 7.99]])
+    normals, uniforms = rng.standard_normal(true.size) * 3, rng.random(true.size)
+    twin = np.where(true < 8.0, np.clip(true + 0.05 * normals, 0.0, 8.0), 8.0)
+    twin[uniforms < 0.1] = 8.0
+    assert np.array_equal(_noisy_ranges(true, normals, uniforms, 0.05, 0.1, 8.0), twin)
+    assert np.array_equal(_noisy_ranges(true, np.zeros(0), np.zeros(0), 0.05, 0.1, 8.0), np.minimum(true, 8.0))
+
+
 def test_laser_config_rejects_bad_values():
     for bad in (dict(fov=0), dict(n_beams=0), dict(max_range=-1), dict(range_sigma=-0.1), dict(drop_probability=1)):
         with pytest.raises(ValueError, match=f"LaserConfig: field '{next(iter(bad))}'"):

@@ -1,14 +1,14 @@
-"""Numba kernels of the planner: the cost grid of a window of the expected map, and the search over it.
+"""Numba kernels of the planner: the cost grid of a window of the expected map, the search over it, and
+the check of the path ahead.
 
-The search is Dijkstra's algorithm on the 8-connected grid with a bucket queue (Dial 1969: costs
-in whole units, a ring of buckets, constant time per step), with scikit-image ``MCP_Geometric``'s
-edge costs: a step
-between neighbours a and b costs ``(c_a + c_b) / 2`` times its length (1 or sqrt 2 cells), and a
-cell of infinite cost is never entered. Given a goal it is A* (Hart, Nilsson and Raphael 1968)
-with the octile distance as heuristic, admissible and consistent because no cell costs less
-than 1 per cell crossed, and it stops when the goal is settled: a replan costs the part of the
-map between the robot and its target, not the whole window. Each has a plain-Python twin in
-``tests/navigation/test_search.py``.
+The search is Dijkstra's algorithm on the 8-connected grid with a bucket queue (Dial 1969: costs in
+whole units, a ring of buckets, constant time per step), with scikit-image ``MCP_Geometric``'s step
+costs: a step between neighbours a and b costs ``(c_a + c_b) / 2`` times its length (1 or sqrt 2
+cells), and a cell of infinite cost is never entered. Given a goal it is A* (Hart, Nilsson and
+Raphael 1968) with the octile distance as heuristic, admissible and consistent because no cell costs
+less than 1 per cell crossed, and it stops when the goal is settled: a replan costs the part of the
+map between the robot and its target, not the whole window. Each kernel has a plain-Python twin in
+``tests/test_search.py``.
 """
 
 from __future__ import annotations
