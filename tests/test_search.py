@@ -50,8 +50,8 @@ def test_cost_distance_is_dijkstra_within_the_cost_unit(seed):
     cumulative, traceback = _search.cost_distance(costs, *start, -1, -1)
     assert np.array_equal(np.isfinite(cumulative), np.isfinite(exact))
     reached = np.isfinite(exact)
-    # each step's cost is rounded to 1 / COST_QUANTUM; every step costs at least 1, so a path of cost C has at
-    # most C * sqrt 2 steps... and the error is at most half a unit per step
+    # each step's cost is rounded to the nearest 1 / COST_QUANTUM and costs at least 1, so a path of cost C has
+    # at most C steps and is off by at most C / (2 COST_QUANTUM); the bound checked is twice that
     assert np.all(np.abs(cumulative[reached] - exact[reached]) <= exact[reached] / _search.COST_QUANTUM + 1e-9)
     # the traceback leads back to the start from every reached cell, along steps whose costs add up
     for row, col in zip(*np.nonzero(reached), strict=True):
