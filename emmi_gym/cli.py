@@ -6,12 +6,19 @@ import argparse
 import sys
 from pathlib import Path
 
+from . import __version__
 from .commands import ab, compare_policies, learning_curves, metrics, record, replay, score_checkpoints
+from .env.seeds import DEMONSTRATION_SEED, HELD_OUT_SEED
 from .inputs import arguments
+from .inputs.extras import MissingExtraError, missing_extra
+from .slam.kernel_cache import first_run_note
 
 DESCRIPTION = ("Active SLAM with a Rao-Blackwellized particle filter and the EMMI reward: run the paper's A/B "
                "experiment, train and evaluate agents, benchmark rewards, record and replay CARMEN logs.")
 
+
+#: Commands that run none of the numba kernels (no note on their first run).
+NO_KERNELS = ("learning-curves",)
 
 _integer, _SEED, _EPISODES = arguments.integer, arguments.SEED, arguments.EPISODES
 def _torch_threads_option(parser: argparse.ArgumentParser, default: str) -> None:
@@ -234,11 +241,14 @@ def _add_clone_parser(sub) -> None:
                                       "decisions, a warm start for 'train --init-from'")
     cl.add_argument("config", help="agent configuration (.yaml) of a waypoint env, e.g. agents/ppo_plans_emmi.yaml")
     cl.add_argument("--policy", default="active_loop_closing", help="the scripted policy (default active_loop_closing)")
-    cl.add_argument("--episodes", type=_EPISODES, default=64, help="demonstration episodes in the training env")
-    cl.add_argument("--seed", type=_SEED, default=300000, help="first demonstration episode's seed")
+    cl.add_argument("--episodes", type=_EPISODES, default=64,
+                    help="demonstration episodes in the training env (default 64)")
+    cl.add_argument("--seed", type=_SEED, default=DEMONSTRATION_SEED,
+                    help=f"first demonstration episode's seed (default {DEMONSTRATION_SEED})")
     cl.add_argument("--demos", nargs="+", default=None, metavar="NPZ",
                     help="demonstrations.npz files to fit instead of playing episodes")
-    cl.add_argument("--epochs", type=_integer(1), default=20)
+    cl.add_argument("--epochs", type=_integer(1), default=20,
+                    help="passes over the demonstrations in the maximum-likelihood fit (default 20)")
     arguments.add_workers(cl)
     cl.add_argument("--out", required=True, help="folder for model.zip, config.yaml, demonstrations.npz, clone.yaml")
     cl.add_argument("--overwrite", action="store_true",
@@ -253,8 +263,10 @@ def _add_evaluate_parser(sub) -> None:
     ev.add_argument("model", nargs="?", default=None,
                     help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
     ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
-    ev.add_argument("--episodes", type=_EPISODES, default=10)
-    ev.add_argument("--seed", type=_SEED, default=200_000, help="first episode seed (default 200000: held out)")
+    ev.add_argument("--episodes", type=_EPISODES, default=10,
+                    help="episodes to play (default 10; on a map set, its first maps, one episode each)")
+    ev.add_argument("--seed", type=_SEED, default=HELD_OUT_SEED,
+                    help=f"first episode's seed (default {HELD_OUT_SEED}: the held-out seeds)")
     ev.add_argument("--world", default=None,
                     help="a world, map set, folder or glob to play on (a set's first maps, one episode each; "
                          "default: the run's evaluation env)")
@@ -276,15 +288,20 @@ def _add_benchmark_parser(sub) -> None:
                                              "baselines, under the same ground-truth metrics")
     bench.add_argument("--config", default="agents/ppo_emmi.yaml",
                        help="the agent configuration whose reward is varied (default agents/ppo_emmi.yaml)")
-    bench.add_argument("--rewards", nargs="+", default=["emmi", "pose_entropy", "joint_entropy", "coverage"])
+    bench.add_argument("--rewards", nargs="+", default=["emmi", "pose_entropy", "joint_entropy", "coverage"],
+                       metavar="REWARD", help="reward variants, an agent per seed each (default emmi pose_entropy "
+                                              "joint_entropy coverage; see docs/rewards.md)")
     arguments.add_seed_range(bench, 3)
     bench.add_argument("--timesteps", type=_integer(1), default=None,
                        help="training steps per agent (default: the configuration's total_timesteps)")
-    bench.add_argument("--episodes", type=_EPISODES, default=10, help="held-out evaluation episodes per agent")
-    bench.add_argument("--eval-seed", type=_SEED, default=200_000,
-                       help="first held-out episode's seed, for the agents and the baselines alike (default 200000; "
-                            "LoopOrder-v1 holds out the seeds from 1000000)")
-    bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], help="scripted policies to compare")
+    bench.add_argument("--episodes", type=_EPISODES, default=10,
+                       help="held-out evaluation episodes per agent and per baseline (default 10)")
+    bench.add_argument("--eval-seed", type=_SEED, default=HELD_OUT_SEED,
+                       help=f"first held-out episode's seed, for the agents and the baselines alike (default "
+                            f"{HELD_OUT_SEED}: the held-out seeds)")
+    bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], metavar="POLICY",
+                       help="scripted policies evaluated on the same episodes (default frontier random; none: "
+                            "give the option with no names)")
     bench.add_argument("--init-from", default=None, metavar="MODEL",
                        help="every agent starts from this model's weights (as 'train --init-from'), e.g. a "
                             "clone of a scripted policy from 'emmi-gym clone'")
@@ -293,7 +310,9 @@ def _add_benchmark_parser(sub) -> None:
                             "are then that model, evaluated under each reward's env)")
     arguments.add_workers(bench)
     arguments.add_ray(bench, "run the agents' training and evaluation as Ray tasks instead of local processes")
-    bench.add_argument("--out", default="benchmark_out")
+    bench.add_argument("--out", default="benchmark_out",
+                       help="folder for the agents' run folders, the episodes, summary and figures (default "
+                            "benchmark_out; run again into it, finished agents are evaluated, unfinished ones resumed)")
     arguments.add_quiet(bench)
     bench.set_defaults(func=_cmd_benchmark)
 
@@ -301,6 +320,7 @@ def _add_benchmark_parser(sub) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The ``emmi-gym`` parser: one subparser per command, each built by its own function."""
     parser = argparse.ArgumentParser(prog="emmi-gym", description=DESCRIPTION)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for add_parser in (ab.add_demo_parser, ab.add_parser, _add_train_parser, _add_clone_parser, _add_evaluate_parser,
                        _add_benchmark_parser, metrics.add_parser, record.add_parser, replay.add_parser,
@@ -312,8 +332,17 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.command not in NO_KERNELS and (note := first_run_note()) is not None:
+        print(note, file=sys.stderr, flush=True)
     try:
         return args.func(args)
+    except MissingExtraError as exc:
+        parser.exit(2, f"emmi-gym {args.command}: error: {exc}\n")
+    except ModuleNotFoundError as exc:  # an optional extra the command needs: the line that installs it
+        missing = missing_extra(exc, f"{args.command!r}")
+        if missing is None:
+            raise
+        parser.exit(2, f"emmi-gym {args.command}: error: {missing}\n")
     except (ValueError, KeyError, OSError) as exc:  # bad input, a file or folder: a message, not a traceback
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         parser.exit(2, f"emmi-gym {args.command}: error: {message}\n")

@@ -41,3 +41,45 @@ def test_ray_means_the_same_in_train_and_benchmark(command):
     assert arguments.ray_address(parse([*command, "--ray"])) is None  # Ray's default: RAY_ADDRESS, else local
     assert arguments.ray_address(parse([*command, "--ray", "10.0.0.1:6379"])) == "10.0.0.1:6379"
     assert arguments.ray_address(parse([*command, "--ray", "local"])) == "local"
+
+
+def _subcommands():
+    import argparse
+
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
+
+
+@pytest.mark.parametrize("command", sorted(_subcommands()))
+def test_every_option_says_what_it_does_and_its_default(command):
+    import argparse
+
+    for action in _subcommands()[command]._actions:
+        if isinstance(action, argparse._HelpAction):
+            continue
+        name = "/".join(action.option_strings) or action.dest
+        assert action.help, f"emmi-gym {command} {name}: no help"
+        if action.option_strings and action.default not in (None, False, [], argparse.SUPPRESS):
+            assert "default" in action.help, f"emmi-gym {command} {name}: help does not give the default"
+
+
+def test_version_prints_the_package_version(capsys):
+    import emmi_gym
+
+    with pytest.raises(SystemExit) as stop:
+        build_parser().parse_args(["--version"])
+    assert stop.value.code == 0 and capsys.readouterr().out.strip() == f"emmi-gym {emmi_gym.__version__}"
+
+
+def test_a_first_run_says_that_numba_compiles_and_where_it_caches(tmp_path, monkeypatch):
+    from numba.core import config
+
+    from emmi_gym.slam.kernel_cache import first_run_note, kernel_cache_folder, kernels_compiled
+
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path))  # what NUMBA_CACHE_DIR sets: an empty cache
+    assert kernel_cache_folder().is_relative_to(tmp_path) and not kernels_compiled()
+    assert first_run_note().startswith("first run: numba compiles the kernels") and str(tmp_path) in first_run_note()
+    kernel_cache_folder().mkdir(parents=True, exist_ok=True)
+    (kernel_cache_folder() / "_kernels.insert_scans-141.py311.nbi").write_bytes(b"")
+    assert kernels_compiled() and first_run_note() is None

@@ -22,7 +22,8 @@ def add_parser(subparsers) -> None:
 def add_demo_parser(subparsers) -> None:
     """``emmi-gym demo``: the A/B experiment in small."""
     demo = subparsers.add_parser("demo", help="the paper's loop-closure experiment in small: A vs B on 3 seeds, "
-                                              "figures and summary in well under a minute")
+                                              "figures and summary in about a minute once numba has compiled the "
+                                              "kernels (the first run's 2-3 minutes)")
     _add_options(demo, seeds=3, particles=10, out="emmi_demo")
 
 
@@ -116,9 +117,9 @@ def run(args: argparse.Namespace) -> int:
     files = write_report(runs, args.out, text)
     print(files["summary"].read_text())
     emmi = summary_table(summary_rows(runs))["emmi_change"]
-    mean, low, high, n, above = emmi["A - B"]
+    mean, low, high, n, better = emmi["A - B"]
     print(f"EMMI after the decision: A {emmi['A'][0]:+.3f}, B {emmi['B'][0]:+.3f} bits/cell; "
-          f"A - B {mean:+.3f} [{low:+.3f}, {high:+.3f}] (95%), A above B on {above} of {n} seeds")
+          f"A - B {mean:+.3f} [{low:+.3f}, {high:+.3f}] (95%), A higher (more certain) on {better} of {n} seeds")
     print(f"{len(runs)} runs in {elapsed:.0f} s")
     for path in files.values():
         print(f"wrote {path}")

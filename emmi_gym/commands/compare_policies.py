@@ -22,9 +22,11 @@ def add_parser(subparsers) -> None:
     arguments.add_seed_range(parser, seeds=1)
     parser.add_argument("--env-id", default="emmi_gym/ExplorePlans-v1",
                         help="the environment id (default emmi_gym/ExplorePlans-v1)")
-    parser.add_argument("--options", default="{}", help="JSON object of further gym.make options")
+    parser.add_argument("--options", default="{}",
+                        help="JSON object of further gym.make options (default {}: the id's own)")
     parser.add_argument("--policies", nargs=2, default=["frontier", "active_loop_closing"],
-                        metavar=("BASELINE", "POLICY"), help="default: frontier active_loop_closing")
+                        metavar=("BASELINE", "POLICY"),
+                        help="the two scripted policies, paired (default frontier active_loop_closing)")
     arguments.add_workers(parser)
     parser.add_argument("--out", default="results/plans", help="output folder (default results/plans)")
     arguments.add_quiet(parser)

@@ -12,9 +12,12 @@ def add_parser(subparsers) -> None:
     record.add_argument("world", help="built-in world name or a world .yaml file")
     record.add_argument("--route", nargs="+", default=["to_decision", "close_loop"],
                         help="route names of the world, driven one after the other (default: to_decision close_loop)")
-    record.add_argument("--seed", type=arguments.SEED, default=0)
-    record.add_argument("--beams", type=arguments.integer(1), default=180)
-    record.add_argument("--max-range", type=arguments.number(0.0, unit="m"), default=8.0)
+    record.add_argument("--seed", type=arguments.SEED, default=0,
+                        help="seed of the odometry and laser noise (default 0)")
+    record.add_argument("--beams", type=arguments.integer(1), default=180,
+                        help="laser beams per scan, over 360 degrees (default 180)")
+    record.add_argument("--max-range", type=arguments.number(0.0, unit="m"), default=8.0,
+                        help="the laser's maximum range in metres (default 8)")
     record.add_argument("--out", default="run.log", help="the log file to write (default run.log)")
     record.set_defaults(func=run)
 

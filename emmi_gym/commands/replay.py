@@ -12,16 +12,17 @@ from ..inputs import arguments
 def add_parser(subparsers) -> None:
     rep = subparsers.add_parser("replay", help="run the RBPF and the certainty metrics on a CARMEN log")
     rep.add_argument("log", help="CARMEN log, plain or .gz (ODOM, FLASER, RAWLASER1, ROBOTLASER1, TRUEPOS lines)")
-    rep.add_argument("--particles", type=arguments.integer(1), default=15)
-    rep.add_argument("--resolution", type=arguments.number(0.0, unit="m"), default=0.1, help="cell size, metres")
+    rep.add_argument("--particles", type=arguments.integer(1), default=15, help="particles of the filter (default 15)")
+    rep.add_argument("--resolution", type=arguments.number(0.0, unit="m"), default=0.1,
+                     help="cell size in metres (default 0.1)")
     rep.add_argument("--max-range", type=arguments.number(0.0, unit="m"), default=None,
                      help="laser range limit, metres (default: from the log; FLASER logs need it)")
-    rep.add_argument("--seed", type=arguments.SEED, default=0)
+    rep.add_argument("--seed", type=arguments.SEED, default=0, help="seed of the filter's sampling (default 0)")
     rep.add_argument("--skip-bad-lines", action="store_true", help="skip and count malformed lines")
     rep.add_argument("--every-scan", action="store_true",
                      help="make every scan an update (logs of keyframes; default: after 0.5 m or 0.3 rad)")
     rep.add_argument("--flaser-fov", type=arguments.number(0.0, 360.0, "degrees"), default=180.0,
-                     help="field of view of FLASER lines, degrees")
+                     help="field of view of FLASER lines in degrees (default 180)")
     rep.add_argument("--preset", default=None,
                      help="RBPF settings for a known kind of log (radish-noisy: the classic CARMEN logs with "
                           "shared/datasets' odometry noise); default: the simulator's")
@@ -29,7 +30,7 @@ def add_parser(subparsers) -> None:
                      help="echoes beyond this only free cells up to it (default: the sensor's range)")
     rep.add_argument("--matching-range", type=arguments.number(0.0, unit="m"), default=None,
                      help="beams beyond this are left out of matching and weights (default: the sensor's range)")
-    rep.add_argument("--out", default="replay_out", help="folder for metrics.csv and the PNGs")
+    rep.add_argument("--out", default="replay_out", help="folder for metrics.csv and the PNGs (default replay_out)")
     arguments.add_quiet(rep)
     rep.set_defaults(func=run)
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..env.seeds import HELD_OUT_SEED
 from ..inputs import arguments
 
 
@@ -17,9 +18,10 @@ def add_parser(subparsers) -> None:
                     "and checkpoint_episodes.csv (every episode) into each run folder.")
     parser.add_argument("runs", nargs="+", type=Path, help="run folders of 'emmi-gym train'")
     parser.add_argument("--world", default=None, help="world, map set, folder or glob (default: the run's own)")
-    parser.add_argument("--episodes", type=arguments.EPISODES, default=16, help="episodes per checkpoint")
-    parser.add_argument("--seed", type=arguments.SEED, default=200_000, help="first episode seed (default 200000: "
-                        "held out, as 'emmi-gym evaluate')")
+    parser.add_argument("--episodes", type=arguments.EPISODES, default=16, help="episodes per checkpoint (default 16)")
+    parser.add_argument("--seed", type=arguments.SEED, default=HELD_OUT_SEED,
+                        help=f"first episode seed (default {HELD_OUT_SEED}: held out, as 'emmi-gym evaluate'; to "
+                             "choose a checkpoint, score it on seeds below that, e.g. 400000)")
     arguments.add_workers(parser)
     arguments.add_quiet(parser)
     parser.set_defaults(func=run)

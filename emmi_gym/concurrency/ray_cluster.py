@@ -3,6 +3,8 @@ benchmark jobs as Ray tasks, training envs and rollout workers as Ray actors."""
 
 from __future__ import annotations
 
+from ..inputs.extras import missing_extra
+
 #: The address that starts a Ray instance on this machine instead of joining a cluster.
 LOCAL = "local"
 
@@ -13,8 +15,8 @@ def connect_ray(address: str | None = LOCAL):
     process is connected already. Returns ``(ray, started_here)``: the caller shuts down what it started."""
     try:
         import ray
-    except ImportError:
-        raise ValueError("Ray is not installed: pip install 'emmi-gym[ray]'") from None
+    except ModuleNotFoundError as error:
+        raise missing_extra(error, "Ray") or error from None
     if ray.is_initialized():
         return ray, False
     ray.init(address=None if address in (None, LOCAL) else address, include_dashboard=False,

@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from ..inputs.extras import missing_extra
+
 PIXELS_PER_METRE = 16
 _WALL, _FREE, _UNKNOWN = (60, 60, 60), (255, 255, 255), (200, 200, 200)
 
@@ -121,7 +123,10 @@ class HumanWindow:
     """A pygame window that shows frames at the environment's frame rate."""
 
     def __init__(self, fps: int):
-        import pygame
+        try:
+            import pygame
+        except ModuleNotFoundError as error:
+            raise missing_extra(error, 'render_mode="human"') or error from None
 
         self.pygame = pygame
         pygame.init()

@@ -24,6 +24,7 @@ import numpy as np
 from ..concurrency.parallel import run_in_processes
 from ..inputs.paths import write_atomically
 from ..policies import make_policy
+from ..scoring.directions import better_side, count_better, format_number
 from ..world.map_sets import map_set_files
 from .episodes import PolicyActor, play_episode, summarise
 from .intervals import difference_interval, measure_interval
@@ -35,9 +36,6 @@ SCORES = {"oracle_accuracy": "accuracy against the oracle map", "wall_consistenc
           "reached_target": "coverage target reached", "sim_steps_to_target": "simulator steps to the target",
           "revisit_share": "revisit share", LOOP_ORDER_KEY: "closed the loop first",
           "decisions": "decisions", "sim_steps": "simulator steps"}
-#: Scores where lower is better; the others count "better" when higher, except those of :data:`NO_BETTER`.
-LOWER_IS_BETTER = ("ate", "sim_steps_to_target")
-NO_BETTER = ("revisit_share", LOOP_ORDER_KEY, "decisions", "sim_steps")
 
 
 @dataclass(frozen=True)
@@ -167,24 +165,28 @@ def paired(rows: list[dict], column: str, policy: str, baseline: str) -> np.ndar
 
 
 def markdown_table(rows: list[dict], policy: str, baseline: str, title: str) -> str:
-    """Mean [95% interval] of each score per policy and of the paired difference ``policy - baseline``
-    (the scores that no row has are left out)."""
+    """Mean [95% interval] of each score per policy and of the paired difference ``policy - baseline``, which
+    side of the score is better, and on how many pairs ``policy`` did better (the scores that no row has are
+    left out)."""
     pairs = len(paired(rows, "coverage", policy, baseline))
-    lines = [f"{title}: {pairs} pairs (world, seed); mean [95% interval]; differences paired.", "",
-             f"| score | {baseline} | {policy} | {policy} - {baseline} | {policy} better |",
-             "| --- | --- | --- | --- | --- |"]
+    lines = [f"{title}: {pairs} pairs (world, seed); mean [95% interval]; differences paired; '{policy} better': "
+             f"on how many pairs {policy}'s score was on the better side of {baseline}'s ('-': no better side).", "",
+             f"| score | better | {baseline} | {policy} | {policy} - {baseline} | {policy} better |",
+             "| --- | --- | --- | --- | --- | --- |"]
     for column, label in SCORES.items():
         if not any(np.isfinite(r.get(column, np.nan)) for r in rows):
             continue
         cells = []
         for name in (baseline, policy):
             m, lo, hi, n = measure_interval([r.get(column, np.nan) for r in rows if r["policy"] == name], column)
-            cells.append(f"{m:.3f} [{lo:.3f}, {hi:.3f}]")
+            cells.append(f"{format_number(m, column)} [{format_number(lo, column)}, {format_number(hi, column)}]")
         diff = paired(rows, column, policy, baseline)
         m, lo, hi, n = difference_interval(diff, column)
-        better = int(np.sum(diff < 0)) if column in LOWER_IS_BETTER else int(np.sum(diff > 0))
-        better_text = "" if column in NO_BETTER else f"{better}/{n}"
-        lines.append(f"| {label} | {cells[0]} | {cells[1]} | {m:+.3f} [{lo:+.3f}, {hi:+.3f}] | {better_text} |")
+        better = count_better(diff, column)
+        change = ", ".join(format_number(v, column, signed=True) for v in (lo, hi))
+        count = "-" if better is None else f"{better}/{n}"
+        lines.append(f"| {label} | {better_side(column)} | {cells[0]} | {cells[1]} | "
+                     f"{format_number(m, column, signed=True)} [{change}] | {count} |")
     return "\n".join(lines)
 
 
@@ -246,7 +248,7 @@ def plot_front(rows: list[dict], path, qualities=("oracle_accuracy", "ate"), tim
             ax.errorbar(t_mean, q_mean, xerr=[[t_mean - t_low], [t_high - t_mean]],
                         yerr=[[q_mean - q_low], [q_high - q_mean]], fmt="o", capsize=3, label=policy)
         ax.set_xlabel(f"robot time: {SCORES.get(time, time)}")
-        ax.set_ylabel(SCORES.get(quality, quality) + (" (lower is better)" if quality in LOWER_IS_BETTER else ""))
+        ax.set_ylabel(f"{SCORES.get(quality, quality)} ({better_side(quality)} is better)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"map quality against robot time, {len(rows) // max(len(policies), 1)} episodes per policy "

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..inputs.paths import write_atomically, write_text_atomically
+from ..scoring.directions import better_side, count_better, digits
 from .ab import POLICIES, ABRun
 from .intervals import difference_interval, measure_interval
 
@@ -87,27 +88,35 @@ def paired_differences(rows: list[dict], column: str) -> np.ndarray:
 
 def summary_table(rows: list[dict]) -> dict[str, dict[str, tuple]]:
     """Per column: the mean interval under A, under B, and of the paired difference A - B
-    (with, for the difference, how many seeds had A above B)."""
+    (with, for the difference, on how many seeds A did better: ``None`` where the measure has no better side,
+    see :mod:`emmi_gym.scoring.directions`)."""
     table = {}
     for column in SUMMARY_COLUMNS:
         entry = {arm: measure_interval([r[column] for r in rows if r["arm"] == arm], column) for arm in POLICIES}
         diff = paired_differences(rows, column)
         finite = diff[np.isfinite(diff)]
-        entry["A - B"] = difference_interval(finite, column) + (int(np.sum(finite > 0)),)
+        entry["A - B"] = difference_interval(finite, column) + (count_better(finite, column),)
         table[column] = entry
     return table
 
 
-def _cell(interval: tuple, digits: int, signed: bool) -> str:
+#: Rows measured where each arm first gets back to the loop's start, which the A/B page's options section
+#: defines: the summary marks them and says where to read how.
+EXPLAINED = ("closure_error", "loop_closed", "loop_hypotheses")
+
+
+def _cell(interval: tuple, column: str, signed: bool) -> str:
     mean, low, high, n = interval[:4]
     if n == 0:
         return "n/a (n=0)"
+    places = {"joint_entropy_change": 0, "pose_entropy_change": 1, "resamplings": 1}.get(column, digits(column))
     sign = "+" if signed else ""
-    return f"{mean:{sign}.{digits}f} [{low:{sign}.{digits}f}, {high:{sign}.{digits}f}] (n={n})"
+    return f"{mean:{sign}.{places}f} [{low:{sign}.{places}f}, {high:{sign}.{places}f}] (n={n})"
 
 
 def markdown_summary(rows: list[dict], settings_text: str) -> str:
-    """The summary as a markdown table: mean and 95% interval per arm and of the paired difference."""
+    """The summary as a markdown table: mean and 95% interval per arm and of the paired difference, which
+    side of each measure is better, and on how many seeds A did better."""
     table = summary_table(rows)
     seeds = sorted({r["seed"] for r in rows})
     lines = [f"A/B experiment: {settings_text}; {len(seeds)} seeds; mean [95% interval] over the n seeds with a "
@@ -116,15 +125,20 @@ def markdown_summary(rows: list[dict], settings_text: str) -> str:
              "A = close_loop_first (close the loop, then the new area); B = explore_first.",
              "Changes are read the same number of RBPF updates after the decision for A and B: "
              "the updates A needed to close the loop (the paper's Fig. 6 compares the two step by step).",
-             "", "| measure | A | B | A - B (paired) | A > B |", "| --- | --- | --- | --- | --- |"]
+             "'better': which side of the measure is better; 'A better': on how many seeds A's value was on that "
+             "side of B's ('-': the measure has no better side).",
+             "", "| measure | better | A | B | A - B (paired) | A better |", "| --- | --- | --- | --- | --- | --- |"]
     for column, label in SUMMARY_COLUMNS.items():
         entry = table[column]
-        digits = {"joint_entropy_change": 0, "pose_entropy_change": 1, "resamplings": 1}.get(column, 3)
         change = column.endswith("_change")
         diff = entry["A - B"]
-        count = f"{diff[4]}/{diff[3]}" if diff[3] else "n/a"
-        lines.append(f"| {label} | {_cell(entry['A'], digits, change)} | {_cell(entry['B'], digits, change)} | "
-                     f"{_cell(diff, digits, True)} | {count} |")
+        count = "n/a" if not diff[3] else "-" if diff[4] is None else f"{diff[4]}/{diff[3]}"
+        shown = f"{label} (*)" if column in EXPLAINED else label
+        lines.append(f"| {shown} | {better_side(column)} | {_cell(entry['A'], column, change)} | "
+                     f"{_cell(entry['B'], column, change)} | {_cell(diff, column, True)} | {count} |")
+    lines += ["", "(*) measured when each arm first gets back to the loop's start, A straight after the decision and B "
+              "after the new area, so they compare the two closures, not the final maps (the final ATE and "
+              "accuracies do): docs/ab.md, 'Options'."]
     failed = [f"seed {r['seed']} {r['arm']} ({'no goal' if r['first_goal_update'] is None else 'first goal only'})"
               for r in rows if not r["completed"]]
     if failed:

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..inputs.extras import missing_extra
+
 FOLDER = Path(__file__).resolve().parent
 
 
@@ -38,9 +40,15 @@ def config(name: str):
 
 
 def load(name: str):
-    """The Stable-Baselines3 model of the shipped agent ``name``, on the CPU."""
-    from ..training.evaluate import load_model
-
+    """The Stable-Baselines3 model of the shipped agent ``name``, on the CPU; without the ``train``
+    extra a :class:`~emmi_gym.inputs.extras.MissingExtraError` naming the line that installs it."""
+    try:
+        from ..training.evaluate import load_model
+    except ModuleNotFoundError as error:
+        missing = missing_extra(error, f"emmi_gym.pretrained.load({name!r})")
+        if missing is None:
+            raise
+        raise missing from None
     return load_model(model_path(name))[0]
 
 

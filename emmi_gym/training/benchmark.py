@@ -28,6 +28,7 @@ from ..experiments.intervals import difference_interval, measure_interval
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
 from ..inputs.paths import write_atomically, write_text_atomically
+from ..scoring.directions import better_side, format_number
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
 from .run_folder import RunError, RunStart, differing_fields, folder_entries
@@ -256,13 +257,18 @@ def measured_columns(table: dict, columns=tuple(TABLE_COLUMNS)) -> list[str]:
 
 def _cell(interval: tuple, column: str, signed: bool = False) -> str:
     mean, low, high, n = interval
-    digits = 0 if column in ("sim_steps_to_target", "sim_steps") else 3
-    sign = "+" if signed else ""
     if n == 0:
         return "n/a"
     if n == 1:  # one agent: no interval
-        return f"{mean:{sign}.{digits}f} (n=1)"
-    return f"{mean:{sign}.{digits}f} [{low:{sign}.{digits}f}, {high:{sign}.{digits}f}] (n={n})"
+        return f"{format_number(mean, column, signed)} (n=1)"
+    return (f"{format_number(mean, column, signed)} [{format_number(low, column, signed)}, "
+            f"{format_number(high, column, signed)}] (n={n})")
+
+
+def _heading(column: str) -> str:
+    """A column's label, with the side that is better where it has one."""
+    side = better_side(column)
+    return TABLE_COLUMNS[column] + ("" if side == "-" else f" ({side} is better)")
 
 
 def markdown(rows: list[dict], header: str) -> str:
@@ -270,7 +276,7 @@ def markdown(rows: list[dict], header: str) -> str:
     each trained variant's paired differences with it."""
     table = summary(rows)
     columns = measured_columns(table)
-    lines = [header, "", "| variant | " + " | ".join(TABLE_COLUMNS[c] for c in columns) + " |",
+    lines = [header, "", "| variant | " + " | ".join(_heading(c) for c in columns) + " |",
              "| --- |" + " --- |" * len(columns)]
     for variant, entry in table.items():
         name = f"{variant} ({entry['agents']} agents)" if entry["agents"] else f"{variant} (scripted)"
@@ -282,7 +288,7 @@ def markdown(rows: list[dict], header: str) -> str:
         shown = [c for c in PAIRED_COLUMNS if any(entry[c][3] > 0 for entry in paired.values())]
         lines += ["", f"Paired with {baseline} on the same episodes (agent minus {baseline}; mean [95% "
                       f"t-interval] over the agents of each agent's mean difference):", "",
-                  "| variant | " + " | ".join(TABLE_COLUMNS[c] for c in shown) + " |",
+                  "| variant | " + " | ".join(_heading(c) for c in shown) + " |",
                   "| --- |" + " --- |" * len(shown)]
         for variant, entry in paired.items():
             lines.append(f"| {variant} - {baseline} | " + " | ".join(_cell(entry[c], c, signed=True) for c in shown)

@@ -7,15 +7,16 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from ..env.seeds import HELD_OUT_SEED
 from ..experiments.episodes import ModelActor, play_episodes
+from ..scoring.directions import better_side, format_number
 from .model_files import load_model_file
 from .train import load_run_config, make_agent_env
 
 #: ``world`` of :func:`compare_model` that means the run's evaluation env's own world.
 OWN_WORLD = object()
-#: Evaluation episodes are seeded from here on by default: apart from training (config seeds)
-#: and from the periodic evaluation during training (eval.seed).
-EVALUATION_SEED = 200_000
+#: Evaluation episodes are seeded from here on by default: the held-out seeds (:mod:`emmi_gym.env.seeds`).
+EVALUATION_SEED = HELD_OUT_SEED
 
 
 @dataclass(frozen=True)
@@ -120,16 +121,18 @@ def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> li
 
 
 def format_table(rows: list[dict], columns=None) -> str:
-    """A fixed-width text table of episode rows (NaN shown as '-')."""
+    """A fixed-width text table of episode rows, numbers as every summary writes them (counts without
+    decimals, NaN as '-'), and a line naming which side of each measure shown is better."""
     columns = columns or list(rows[0])
 
-    def text(value) -> str:
-        if isinstance(value, float):
-            return "-" if value != value else f"{value:.3f}" if abs(value) < 1000 else f"{value:.0f}"
-        return str(value)
+    def text(value, column: str) -> str:
+        return format_number(value, column) if isinstance(value, float) else str(value)
 
-    cells = [[text(row.get(c, float("nan"))) for c in columns] for row in rows]
+    cells = [[text(row.get(c, float("nan")), c) for c in columns] for row in rows]
     widths = [max(len(c), 9, *(len(line[k]) for line in cells)) for k, c in enumerate(columns)]
     lines = [" ".join(c.rjust(w) for c, w in zip(columns, widths, strict=False))]
     lines += [" ".join(t.rjust(w) for t, w in zip(line, widths, strict=False)) for line in cells]
+    sides = {side: [c for c in columns if better_side(c) == side] for side in ("higher", "lower")}
+    if any(sides.values()):
+        lines.append("better: " + "; ".join(f"{side} {', '.join(names)}" for side, names in sides.items() if names))
     return "\n".join(lines)
