@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import heapq
 import math
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -125,15 +126,42 @@ def test_path_obstructed_matches_its_twin(seed):
         path_obstructed_twin(expected, geometry, points, 0.2, skip=skip, horizon=horizon)
 
 
+def _peak_bytes(function) -> int:
+    """The most memory ``function()`` held at once beyond what it started with (NumPy's arrays included)."""
+    tracemalloc.start()
+    try:
+        function()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
 def test_a_path_a_thousand_kilometres_long_costs_what_the_map_holds():
     geometry = GridGeometry(0.1, 0.0, 0.0, 20, 200)
     expected = np.full(geometry.shape, 0.2)
     expected[:, 150] = 0.9
+    peaks = []
     for end in (30.0, 1e6):  # the same question; the second path runs off the map for 1000 km
-        path = [(0.5, 1.0), (19.5, 1.0), (19.5, end)]
-        assert path_obstructed(expected, geometry, path, 0.2)
-        path = [(0.5, 1.0), (10.0, 1.0), (10.0, end)]
-        assert not path_obstructed(expected, geometry, path, 0.2)
+        def ask(end=end):
+            assert path_obstructed(expected, geometry, [(0.5, 1.0), (19.5, 1.0), (19.5, end)], 0.2)
+            assert not path_obstructed(expected, geometry, [(0.5, 1.0), (10.0, 1.0), (10.0, end)], 0.2)
+
+        ask()  # compiled, so that only the question is measured
+        peaks.append(_peak_bytes(ask))
+    assert peaks[1] <= peaks[0] + 4096, peaks  # a few bytes of Python objects, no samples of the 1000 km
+
+
+def test_drawing_a_path_a_thousand_kilometres_long_costs_what_the_panel_holds():
+    from emmi_gym.env.rendering import Canvas
+
+    peaks = []
+    for end in (30.0, 1e6):
+        canvas = Canvas((0.0, 0.0, 20.0, 20.0))
+        path = np.array([(0.5, 1.0), (19.5, 1.0), (19.5, end)])
+        canvas.polyline(path, (255, 0, 0))
+        peaks.append(_peak_bytes(lambda canvas=canvas, path=path: canvas.polyline(path, (255, 0, 0))))
+        assert canvas.image[-17, 16:300, 0].all() and canvas.image[:, 312, 0].sum() > 0  # both legs drawn
+    assert peaks[1] <= 2 * peaks[0], peaks
 
 
 def test_travel_costs_plan_round_a_wall_and_keep_clear_of_it():

@@ -131,6 +131,7 @@ def test_generator_rejects_bad_parameters():
     (box(walls=[{"circle": {"r": 1}}]), "walls[0]", "exactly one of"),
     (box(walls=[]), "walls", "non-empty list"),
     (box(routes={"r": ["start", "nowhere"]}), "routes.r[1]", "place name"),
+    (box(routes={"r": ["start", [9000, 1]]}), "routes.r[1]", r"a waypoint inside the bounds \[-3, 3\]"),
     ([1, 2, 3], "", "a mapping"),
 ])
 def test_malformed_world_names_the_field(data, field, expected):

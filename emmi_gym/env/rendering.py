@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from ..geometry.clipping import clip_segment
 from ..inputs.extras import missing_extra
 
 PIXELS_PER_METRE = 16
@@ -41,9 +42,17 @@ class Canvas:
                     self.image[r[ok], c[ok]] = colour
 
     def polyline(self, xy: np.ndarray, colour):
+        """Each segment sampled twice a pixel over the part of it that crosses the panel (clipped first:
+        an estimated path far off the map costs what the panel holds)."""
+        xmax, ymax = self.xmin + self.width / self.ppm, self.ymin + self.height / self.ppm
         for (x0, y0), (x1, y1) in zip(xy[:-1], xy[1:], strict=False):
-            n = max(2, int(math.hypot(x1 - x0, y1 - y0) * self.ppm * 2))
-            self.points(np.linspace(x0, x1, n), np.linspace(y0, y1, n), colour)
+            t0, t1 = clip_segment(float(x0), float(y0), float(x1 - x0), float(y1 - y0), 0.0, 1.0,
+                                  self.xmin, xmax, self.ymin, ymax)
+            if t0 > t1:
+                continue
+            n = max(2, int(math.hypot(x1 - x0, y1 - y0) * (t1 - t0) * self.ppm * 2))
+            t = np.linspace(t0, t1, n)
+            self.points(x0 + t * (x1 - x0), y0 + t * (y1 - y0), colour)
 
     def robot(self, pose, colour, radius_m: float):
         self.points(pose[0], pose[1], colour, radius=max(1, int(radius_m * self.ppm)))

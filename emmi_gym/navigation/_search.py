@@ -18,6 +18,8 @@ import math
 import numba as nb
 import numpy as np
 
+from ..geometry.clipping import clip_segment
+
 #: The eight steps (d_row, d_col); ``traceback`` holds, for each cell, the index of the step that reached it.
 OFFSETS = np.array([[-1, -1], [-1, 0], [-1, 1], [0, -1], [0, 1], [1, -1], [1, 0], [1, 1]], dtype=np.int64)
 _SQRT2 = math.sqrt(2.0)
@@ -220,13 +222,7 @@ def path_blocked(expected, origin_x, origin_y, resolution, points, skip, horizon
         if length == 0.0 or start_s >= stop_s:
             continue
         t0, t1 = (start_s - (along - length)) / length, (stop_s - (along - length)) / length
-        for delta, low, high, origin in ((dx, lo_x, hi_x, ax), (dy, lo_y, hi_y, ay)):
-            if delta == 0.0:
-                if origin < low or origin > high:
-                    t1 = -1.0
-            else:
-                a, b = (low - origin) / delta, (high - origin) / delta
-                t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
+        t0, t1 = clip_segment(ax, ay, dx, dy, t0, t1, lo_x, hi_x, lo_y, hi_y)
         if t0 > t1:
             continue
         segment_start = along - length

@@ -259,7 +259,12 @@ def _check_start(r: _Reader, start: Place, bounds, walls: np.ndarray) -> None:
 
 
 def _check_route(r: _Reader, path: str, waypoints: list, bounds, walls: np.ndarray) -> None:
-    """A route is driven straight from waypoint to waypoint: the robot must fit along every leg."""
+    """A route is driven straight from waypoint to waypoint: every waypoint inside the bounds (so that the legs'
+    checks cost what the world holds), and the robot must fit along every leg."""
+    xmin, ymin, xmax, ymax = bounds
+    for i, (x, y) in enumerate(waypoints):
+        if not (xmin <= x <= xmax and ymin <= y <= ymax):
+            r.fail(f"{path}[{i}]", f"a waypoint inside the bounds [{xmin:g}, {xmax:g}] x [{ymin:g}, {ymax:g}]", [x, y])
     for i, (a, b) in enumerate(zip(waypoints[:-1], waypoints[1:], strict=False)):
         length = math.hypot(b[0] - a[0], b[1] - a[1])
         t = np.linspace(0.0, 1.0, max(2, int(math.ceil(length / ROUTE_CHECK_STEP)) + 1))
