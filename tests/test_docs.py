@@ -179,10 +179,23 @@ MAX_PAGE_BYTES = 12 * 1024
 SNIPPET = re.compile(r'^--8<-- "([^"]+)"$', re.M)
 
 
+def included_bytes(name: str) -> int:
+    """The bytes a snippet line includes: a whole file (``FILE``), or the lines of one section (``FILE:NAME``,
+    between the file's ``--8<-- [start:NAME]`` and ``--8<-- [end:NAME]`` markers, as pymdownx.snippets cuts it)."""
+    path, _, section = name.partition(":")
+    data = (ROOT / path).read_bytes()
+    if not section:
+        return len(data)
+    found = re.search(rf"--8<-- \[start:{re.escape(section)}\][^\n]*\n(.*?)\n[^\n]*--8<-- \[end:{re.escape(section)}\]",
+                      data.decode(), re.S)
+    assert found, f"{path} has no section {section!r}"
+    return len(found.group(1).encode())
+
+
 def page_bytes(page: Path) -> int:
     """The size of ``page`` as the site renders it: its own bytes plus those of the files it includes."""
     text = page.read_text()
-    included = sum(len((ROOT / name).read_bytes()) for name in SNIPPET.findall(text))
+    included = sum(included_bytes(name) for name in SNIPPET.findall(text))
     return len(SNIPPET.sub("", text).encode()) + included
 
 
@@ -190,13 +203,16 @@ def test_page_size_counts_included_files(tmp_path):
     page = tmp_path / "page.md"
     page.write_text('# Changes\n\n--8<-- "CHANGELOG.md"\n')
     assert page_bytes(page) == len(b"# Changes\n\n\n") + len((ROOT / "CHANGELOG.md").read_bytes())
+    page.write_text('# Changes\n\n--8<-- "CHANGELOG.md:v0.1.0"\n')
+    section = (ROOT / "CHANGELOG.md").read_text().split("## 0.1.0\n")[1].rsplit("\n<!--", 1)[0]
+    assert page_bytes(page) == len(b"# Changes\n\n\n") + len(("## 0.1.0\n" + section).encode())
 
 
 def test_no_docs_page_exceeds_12_kib():
     sizes = {str(p.relative_to(DOCS)): page_bytes(p) for p in DOCS.rglob("*.md")}
     too_large = {name: size for name, size in sorted(sizes.items()) if size > MAX_PAGE_BYTES}
     assert not too_large, (f"docs pages over {MAX_PAGE_BYTES} bytes: {too_large}; split them by topic "
-                           "(see docs/benchmarks/) or move figures to the benchmarks pages")
+                           "(see docs/results/) or move figures to the results pages")
 
 
 #: The worked examples of docs/make_your_own.md, in the page's order.

@@ -10,7 +10,7 @@ ROOT = Path(emmi_gym.__file__).parent
 #: What each package imports of the others (docs/design.md, "Packages"): imports point down this table.
 ALLOWED = {
     "inputs": set(),
-    "concurrency": set(),
+    "concurrency": {"inputs"},
     "geometry": set(),
     "formats": {"inputs"},
     "certainty": {"concurrency"},
@@ -22,8 +22,8 @@ ALLOWED = {
     "policies": {"world"},
     "experiments": {"geometry", "inputs", "concurrency", "certainty", "formats", "world", "slam", "scoring",
                     "policies"},
-    "training": {"inputs", "concurrency", "env", "policies", "experiments"},
-    "pretrained": {"training"},
+    "training": {"inputs", "concurrency", "scoring", "env", "policies", "experiments"},
+    "pretrained": {"inputs", "training"},
     "commands": {"inputs", "certainty", "formats", "world", "slam", "env", "policies", "experiments", "training"},
 }
 

@@ -15,7 +15,7 @@ ENV_IDS = {
                             laser={"preset": "sick_lms200", "max_range": 8.0}, odometry_noise="poor"),
     # the paper's experiment generalised: a corridor loop, featureless along its length, left open at the decision
     # point beside a long dead-end new area, a new world per seed (emmi_gym.world.loop_worlds); exploring the new
-    # area first and back resamples away a fifth to a third of the loop's hypotheses (docs/loop_order.md)
+    # area first and back resamples away a fifth to a third of the loop's hypotheses (docs/results/order_matters.md)
     "LoopOrder-v1": dict(world="loop_order",
                          generator={"new_area_length": 20.0, "new_area_loop": False, "size_jitter": 0.15},
                          start_at="decision", action_mode="waypoint",

@@ -272,7 +272,9 @@ def plot_maps(runs: list[ABRun], seed: int, path: Path) -> None:
                ["true walls", "best particle's path"], loc="lower center", ncol=2, fontsize=8, frameon=False,
                title="expected map: white free, black occupied, grey unknown", title_fontsize=8)
     fig.tight_layout(rect=(0, 0.1, 1, 1))
-    write_atomically(path, partial(fig.savefig, dpi=110))
+    # the panels keep the world's aspect, which tight_layout does not leave room above for: the titles
+    # would be cut, so the saved area is what is drawn
+    write_atomically(path, partial(fig.savefig, dpi=110, bbox_inches="tight"))
     plt.close(fig)
 
 

@@ -169,7 +169,7 @@ class RBPFConfig:
 #: beam that grazes a far wall crosses its cells before it reaches its end cell; and cells
 #: clamped at +-9 log-odds (codes of 0.1), so that what was seen many times, free space and
 #: walls alike, outlasts a few contrary readings and a place seen again on a long tour still
-#: matches it. Its figures: docs/benchmarks/filter.md.
+#: matches it. Its figures: docs/results/filter.md.
 PRESETS = {
     "radish-noisy": dict(motion_noise=(0.03, 0.02, 0.01, 0.05), match_climb_beams=90, likelihood_exponent=0.003,
                          revisit_gap=None, logodds_free=-0.8, logodds_clamp=9.0, logodds_step=0.1),
