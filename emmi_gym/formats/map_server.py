@@ -57,4 +57,4 @@ def write_map_server(yaml_path, values: np.ndarray, geometry: GridGeometry, *, m
 
 
 def _save_pgm(levels: np.ndarray, path) -> None:
-    Image.fromarray(np.ascontiguousarray(levels), mode="L").save(path, format="PPM")
+    Image.fromarray(np.ascontiguousarray(levels, dtype=np.uint8)).save(path, format="PPM")

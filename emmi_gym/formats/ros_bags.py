@@ -25,6 +25,7 @@ found; the records read may take at most ``max_bytes`` of memory, as a CARMEN lo
 from __future__ import annotations
 
 import math
+import sqlite3
 import struct
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -115,21 +116,23 @@ def read_bag(path, topics: BagTopics = BagTopics(), *, max_bytes: int = carmen.M
 
 @contextmanager
 def _library_errors(source: str) -> Iterator[None]:
-    """The library's errors about a damaged or foreign file as :class:`BagError`, one line each."""
+    """The library's errors about a damaged or foreign file as :class:`BagError`, one line each (a damaged
+    bag's lengths and offsets also fail in the decoding and indexing they drive)."""
     rb = rosbags()
-    errors = (rb.highlevel.AnyReaderError, rb.rosbag1.ReaderError, rb.rosbag2.ReaderError, struct.error,
-              EOFError, UnicodeDecodeError, KeyError, IndexError)
+    errors = (rb.highlevel.AnyReaderError, rb.rosbag1.ReaderError, rb.rosbag2.ReaderError, FileNotFoundError,
+              sqlite3.DatabaseError, struct.error, EOFError, OverflowError, UnicodeDecodeError, KeyError, IndexError)
     try:
         yield
+    except BagError:
+        raise
     except errors as exc:
-        what = " ".join(str(exc).split()) or type(exc).__name__
-        raise BagError(source, "", "a readable ROS 1 bag or ROS 2 bag (folder, .db3 or .mcap)", what) from None
-    except Exception as exc:  # sqlite3's and the MCAP and compression readers' own errors on a damaged file
-        if type(exc).__module__.split(".")[0] not in ("sqlite3", "apsw", "mcap", "lz4", "zstandard", "backports",
-                                                      "rosbags", "ruamel"):
-            raise
-        raise BagError(source, "", "a readable ROS 1 bag or ROS 2 bag (folder, .db3 or .mcap)",
-                       f"{type(exc).__name__}: {' '.join(str(exc).split())}") from None
+        raise BagError(source, "", "a readable ROS 1 bag or ROS 2 bag (folder, .db3 or .mcap); the reader says: "
+                       f"{_one_line(exc)}") from None
+
+
+def _one_line(exc: BaseException, limit: int = 160) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def _choose_topics(source: str, available: dict, topics: BagTopics) -> tuple[dict[str, str], dict[str, int]]:
@@ -190,15 +193,16 @@ def _collect(source: str, reader, chosen: dict[str, str], topics: BagTopics, max
 
         messages = tqdm(messages, total=sum(c.msgcount for c in connections), unit="msg", desc="reading bag")
     odom_frame, base_frame = _frame(topics.odom_frame), samples.base_frame
+    unreadable = rosbags().highlevel.AnyReaderError
     for connection, _, raw in messages:
         topic = connection.topic
         counts[topic] += 1
         role = role_of[topic]
         try:
             message = reader.deserialize(raw, connection.msgtype)
-        except Exception as exc:  # the library's errors on bytes that are not the type's
-            raise BagError(source, topic, f"{connection.msgtype} messages", f"message {counts[topic]} unreadable: "
-                           f"{' '.join(str(exc).split())[:60]}") from None
+        except unreadable as exc:  # bytes that are not the type's
+            raise BagError(source, topic, f"{connection.msgtype} messages; message {counts[topic]} is not one "
+                           f"({_one_line(exc, 100)})") from None
         if role == "scan":
             scan = _scan(source, topic, counts[topic], message)
             held += carmen.RECORD_BYTES + scan[1].nbytes
@@ -276,13 +280,27 @@ def _mounting(frame: str, base: str, links: dict) -> tuple[np.ndarray, bool] | N
     return offset, bool(np.linalg.det(matrix[:2, :2]) < 0.0)
 
 
+def _series(samples: list) -> tuple[np.ndarray, np.ndarray]:
+    """(stamps ns (int64), poses (n, 3)) of (stamp, x, y, yaw) samples, in time order."""
+    ordered = sorted(samples, key=lambda sample: sample[0])
+    return (np.array([sample[0] for sample in ordered], dtype=np.int64),
+            np.array([sample[1:] for sample in ordered], dtype=np.float64).reshape(-1, 3))
+
+
 def _records(source: str, samples: _Samples, chosen: dict[str, str], topics: BagTopics) -> carmen.CarmenLog:
-    """The scans, each with its interpolated odometry pose and its mounting, and the truth, in time order."""
+    """The scans, each with its interpolated odometry pose and its mounting, and the truth, in time order.
+    Times are interpolated as nanoseconds from the first odometry stamp (exact in float64 for 100 days)."""
     log = carmen.CarmenLog()
-    odometry = np.array(sorted(samples.odometry), dtype=np.float64).reshape(-1, 4)
+    odometry_ns, odometry = _series(samples.odometry)
+    origin = int(odometry_ns[0])
+    odometry_times = (odometry_ns - origin).astype(np.float64)
     order = sorted(range(len(samples.scans)), key=lambda k: samples.scans[k][0])
     stamps = np.array([samples.scans[k][0] for k in order], dtype=np.int64)
-    poses = interpolate_poses(odometry[:, 0], odometry[:, 1:], stamps.astype(np.float64))
+    poses = interpolate_poses(odometry_times, odometry, (stamps - origin).astype(np.float64))
+    if np.isnan(poses[:, 0]).all():
+        raise BagError(source, chosen["scan"], f"scans within the odometry's time span ({seconds(origin):g} s to "
+                       f"{seconds(odometry_ns[-1]):g} s of {_odometry_source(chosen, topics, samples)})",
+                       f"{len(stamps):,} scans from {seconds(stamps[0]):g} s to {seconds(stamps[-1]):g} s")
     mountings = {frame: _mounting(frame or samples.base_frame, samples.base_frame, samples.links)
                  for frame in {scan[6] for scan in samples.scans}}
     left_out = 0
@@ -297,12 +315,12 @@ def _records(source: str, samples: _Samples, chosen: dict[str, str], topics: Bag
         ranges = np.where(ranges > high, np.inf, np.where(no_reading, 0.0, ranges))
         records.append((ns, 1, carmen.LaserRecord(
             ranges, start, step, high, seconds(ns), None if np.isnan(pose[0]) else pose, offset, "LaserScan")))
-    truth = np.array(sorted(samples.truth), dtype=np.float64).reshape(-1, 4)
-    if truth.size:
-        beside = interpolate_poses(odometry[:, 0], odometry[:, 1:],
-                                   np.clip(truth[:, 0], odometry[0, 0], odometry[-1, 0]))
-        records += [(int(t[0]), 0, carmen.TruePoseRecord(t[1:].copy(), o, seconds(int(t[0]))))
-                    for t, o in zip(truth, beside, strict=True)]
+    truth_ns, truth = _series(samples.truth)
+    if truth_ns.size:  # each true pose with the odometry at its time (or the nearest end), as TRUEPOS lines
+        at = np.clip(truth_ns - origin, 0, odometry_ns[-1] - origin).astype(np.float64)
+        beside = interpolate_poses(odometry_times, odometry, at)
+        records += [(int(t), 0, carmen.TruePoseRecord(pose, near, seconds(int(t))))
+                    for t, pose, near in zip(truth_ns, truth, beside, strict=True)]
     log.records = [record for _, _, record in sorted(records, key=lambda r: r[:2])]
     log.warnings = _warnings(samples, chosen, mountings, left_out, int(np.isnan(poses[:, 0]).sum()), topics)
     log.scans_without_echo = sum(1 for record in log.of_type(carmen.LaserRecord) if not np.any(record.ranges > 0))
@@ -323,7 +341,10 @@ def _warnings(samples: _Samples, chosen: dict[str, str], mountings: dict, left_o
         sentences.append(f"{left_out:,} of {total:,} readings of {scan} are NaN, -inf or below range_min: left out "
                          "(REP 117: no valid reading)")
     if without_odometry:
-        odometry = chosen.get("odom") or f"/tf {topics.odom_frame} -> {samples.base_frame}"
         sentences.append(f"{without_odometry:,} of {len(samples.scans):,} scans lie outside the time span of the "
-                         f"odometry ({odometry}): skipped")
+                         f"odometry ({_odometry_source(chosen, topics, samples)}): skipped")
     return sentences
+
+
+def _odometry_source(chosen: dict[str, str], topics: BagTopics, samples: _Samples) -> str:
+    return chosen.get("odom") or f"/tf {_frame(topics.odom_frame)} -> {samples.base_frame}"

@@ -115,3 +115,14 @@ def transform_stamped(store, ns: int, parent: str, child: str, x: float, y: floa
         transform=types["geometry_msgs/msg/Transform"](
             translation=types["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=0.0),
             rotation=quaternion(store, yaw)))
+
+
+def odometry_message(store, ns: int, parent: str, child: str, pose):
+    """A ``nav_msgs/Odometry`` of the planar ``pose`` of ``child`` in ``parent``, at rest, covariances 0."""
+    types = store.types
+    zeros, vector = np.zeros(36), types["geometry_msgs/msg/Vector3"]
+    still = types["geometry_msgs/msg/Twist"](linear=vector(x=0.0, y=0.0, z=0.0), angular=vector(x=0.0, y=0.0, z=0.0))
+    return types[ODOMETRY](
+        header=header(store, ns, parent), child_frame_id=child,
+        pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=pose_message(store, *pose), covariance=zeros),
+        twist=types["geometry_msgs/msg/TwistWithCovariance"](twist=still, covariance=zeros))

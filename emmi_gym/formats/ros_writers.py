@@ -28,6 +28,7 @@ from .ros_messages import (
     POSE_STAMPED,
     TF_MESSAGE,
     header,
+    odometry_message,
     pose_message,
     rosbags,
     time_message,
@@ -52,6 +53,18 @@ class _Bag:
             self.connections[topic] = self.writer.add_connection(topic, msgtype, typestore=self.store)
         serialize = self.store.serialize_ros1 if self.ros1 else self.store.serialize_cdr
         self.writer.write(self.connections[topic], ns, serialize(message, msgtype))
+
+
+def check_new_bag(path, option: str = "--bag-out") -> Path:
+    """``path``, where a new ROS 2 bag can be written (nothing there yet, in an existing folder), before the
+    work that fills it; ValueError otherwise, or :class:`~.ros_messages.RosExtraMissing`."""
+    rosbags()
+    path = Path(path)
+    if path.exists():
+        raise ValueError(f"{option} {path}: exists (a ROS 2 bag is written into a new folder)")
+    if not path.parent.is_dir():
+        raise ValueError(f"{option} {path}: {path.parent} is not a folder")
+    return path
 
 
 @contextmanager
@@ -97,7 +110,7 @@ def write_log_bag(log: carmen.CarmenLog, path, storage: str = "sqlite3", *, max_
                     offset = record.laser_offset if record.laser_offset is not None else np.zeros(3)
                     bag.write("/tf_static", TF_MESSAGE, ns, types[TF_MESSAGE](
                         transforms=[transform_stamped(bag.store, ns, base_frame, laser_frame, *offset)]))
-                bag.write("/odom", ODOMETRY, ns, _odometry(bag.store, ns, frames, pose))
+                bag.write("/odom", ODOMETRY, ns, odometry_message(bag.store, ns, odom_frame, base_frame, pose))
                 bag.write("/tf", TF_MESSAGE, ns, types[TF_MESSAGE](
                     transforms=[transform_stamped(bag.store, ns, odom_frame, base_frame, *pose)]))
                 bag.write("/scan", LASER_SCAN, ns, _laser_scan(bag.store, ns, laser_frame, record, max_range))
@@ -105,19 +118,6 @@ def write_log_bag(log: carmen.CarmenLog, path, storage: str = "sqlite3", *, max_
     if not written:
         raise ValueError("the log has no scan with odometry to write")
     return Path(path)
-
-
-def _odometry(store, ns: int, frames: tuple[str, str, str], pose):
-    types = store.types
-    zeros = np.zeros(36)
-    vector = types["geometry_msgs/msg/Vector3"]
-    return types[ODOMETRY](
-        header=header(store, ns, frames[0]), child_frame_id=frames[1],
-        pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=pose_message(store, *pose), covariance=zeros),
-        twist=types["geometry_msgs/msg/TwistWithCovariance"](
-            twist=types["geometry_msgs/msg/Twist"](linear=vector(x=0.0, y=0.0, z=0.0),
-                                                   angular=vector(x=0.0, y=0.0, z=0.0)),
-            covariance=zeros))
 
 
 def _laser_scan(store, ns: int, frame: str, record: carmen.LaserRecord, max_range: float | None):
