@@ -15,6 +15,7 @@ import numpy as np
 
 from ..certainty.information import cell_information
 from ..formats.map_server import occupancy_values, write_map_server
+from ..formats.ros_writers import write_map_bag
 from ..geometry.grid import GridGeometry
 from .replay import ReplayResult, explored_extent
 from .report import write_csv
@@ -45,9 +46,11 @@ def write_map_files(result: ReplayResult, out_dir) -> dict[str, Path]:
     ``out_dir``."""
     out = Path(out_dir)
     layers = map_layers(result)
-    files = {f"{name}.yaml": write_map_server(out / f"{name}.yaml", values, geometry,
-                                              mode="trinary" if name == "map" else "scale")
-             for name, (values, geometry) in layers.items()}
+    files = {}
+    for name, (values, geometry) in layers.items():
+        files[f"{name}.yaml"] = write_map_server(out / f"{name}.yaml", values, geometry,
+                                                 mode="trinary" if name == "map" else "scale")
+        files[f"{name}.pgm"] = files[f"{name}.yaml"].with_suffix(".pgm")
     files["best_path.csv"] = write_path_csv(out / "best_path.csv", result.timestamps,
                                             result.slam.paths[result.slam.best])
     return files
@@ -56,7 +59,5 @@ def write_map_files(result: ReplayResult, out_dir) -> dict[str, Path]:
 def write_replay_bag(result: ReplayResult, path, storage: str = "sqlite3") -> Path:
     """The layers of :func:`map_layers` on ``/map`` and ``/expected_information`` and the best particle's
     path on ``/path``, as a ROS 2 bag."""
-    from ..formats.ros_writers import write_map_bag
-
     grids = {f"/{name}": layer for name, layer in map_layers(result).items()}
     return write_map_bag(path, grids, result.timestamps, result.slam.paths[result.slam.best], storage=storage)
