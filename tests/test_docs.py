@@ -203,7 +203,7 @@ def test_page_size_counts_included_files(tmp_path):
     page = tmp_path / "page.md"
     page.write_text('# Changes\n\n--8<-- "CHANGELOG.md"\n')
     assert page_bytes(page) == len(b"# Changes\n\n\n") + len((ROOT / "CHANGELOG.md").read_bytes())
-    page.write_text('# Changes\n\n--8<-- "CHANGELOG.md:v0.1.0"\n')
+    page.write_text('# Changes\n\n--8<-- "CHANGELOG.md:release-0-1-0"\n')
     section = (ROOT / "CHANGELOG.md").read_text().split("## 0.1.0\n")[1].rsplit("\n<!--", 1)[0]
     assert page_bytes(page) == len(b"# Changes\n\n\n") + len(("## 0.1.0\n" + section).encode())
 

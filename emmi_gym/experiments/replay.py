@@ -202,7 +202,7 @@ def write_tum(result: ReplayResult, path) -> Path:
     return path
 
 
-def _explored_extent(slam: RBPF, margin: float = 1.0) -> tuple[slice, slice, tuple]:
+def explored_extent(slam: RBPF, margin: float = 1.0) -> tuple[slice, slice, tuple]:
     """Rows, columns and (xmin, xmax, ymin, ymax) of the box of the best map's known cells, with a margin."""
     g = slam.geometry
     rows, cols = np.nonzero(slam.maps.codes[slam.best])
@@ -225,7 +225,7 @@ def write_map_png(result: ReplayResult, path, grid: np.ndarray | None = None, ti
 
     slam = result.slam
     grid = slam.best_map() if grid is None else grid
-    rows, cols, extent = _explored_extent(slam)
+    rows, cols, extent = explored_extent(slam)
     crop = grid[rows, cols]
     fig, ax = plt.subplots(figsize=(7, 7 * crop.shape[0] / max(crop.shape[1], 1) + 0.6))
     ax.imshow(crop, origin="lower", extent=extent, cmap="gray_r", vmin=0, vmax=1, interpolation="nearest")

@@ -85,14 +85,16 @@ class CarmenFileError(FieldError):
 
 @dataclass
 class CarmenLog:
-    """The records of a log, in file order, with what was skipped (bad lines by message type) and what is
-    wrong with its laser lines' timestamps (sentences naming the lines)."""
+    """The records of a log, in file order, with what was skipped (bad lines by message type), what is
+    wrong with its laser lines' timestamps (sentences naming the lines) and, from readers of other
+    formats (:mod:`.ros_bags`), other warnings a replay should print before it starts."""
 
     records: list = field(default_factory=list)
     skipped_bad_lines: dict[str, int] = field(default_factory=dict)
     ignored_messages: dict[str, int] = field(default_factory=dict)
     scans_without_echo: int = 0  # laser lines whose every range is 0 (kept: the motion still counts)
     timing: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     def of_type(self, cls) -> list:
         return [r for r in self.records if isinstance(r, cls)]
@@ -106,7 +108,7 @@ class CarmenLog:
             lines.append("ignored messages: " + _counts(self.ignored_messages))
         if self.scans_without_echo:
             lines.append(f"{self.scans_without_echo} scans have no echo (every range 0): they add nothing to the map")
-        return lines + self.timing
+        return lines + self.timing + self.warnings
 
 
 def _counts(by_type: dict[str, int]) -> str:

@@ -129,3 +129,20 @@ def local_motion_std(delta, noise) -> np.ndarray:
     return np.array([srr * dx + str_ * dth + sxy * dy,
                      srr * dy + str_ * dth + sxy * dx,
                      stt * dth + srt * math.hypot(dx, dy)])
+
+
+def interpolate_poses(times: np.ndarray, poses: np.ndarray, at) -> np.ndarray:
+    """Poses (len(at), 3) at the times ``at``, linear between the two samples around each (the heading along
+    the shorter turn), as tf2 interpolates a transform between two stamps; NaN outside ``[times[0],
+    times[-1]]`` (no extrapolation). ``times`` ascending (ties: the last sample of a time counts). A time
+    equal to a sample's gives that sample's pose bit for bit; headings are not wrapped again."""
+    times, poses, at = np.asarray(times, dtype=np.float64), np.asarray(poses, dtype=np.float64), np.asarray(at)
+    k = np.clip(np.searchsorted(times, at, side="right") - 1, 0, times.size - 1)
+    after = np.minimum(k + 1, times.size - 1)
+    span = times[after] - times[k]
+    w = np.where(span > 0.0, (at - times[k]) / np.where(span > 0.0, span, 1.0), 0.0)[:, None]
+    step = poses[after] - poses[k]
+    step[:, 2] = wrap_angle(step[:, 2])
+    out = np.where(w > 0.0, poses[k] + w * step, poses[k])
+    out[(at < times[0]) | (at > times[-1])] = np.nan
+    return out
