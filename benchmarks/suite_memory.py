@@ -1,7 +1,8 @@
 """The peak memory of a command and every process it starts (the test suite by default): the summed
-resident set size (RSS) of the process tree, sampled every ``--every`` seconds from /proc (Linux). Shared
-pages count once per process, so the sum is an upper bound of what the tree took. For pytest it also
-names the tests that held the most (a plugin, ``_current_test.py``, says which test is running).
+proportional set size (PSS) of the process tree, sampled every ``--every`` seconds from /proc (Linux):
+each process's resident pages, a page shared by n processes (a library's code, a forked parent's
+memory) counted 1/n in each, so the sum is what the tree took of the machine's memory. For pytest it
+also names the tests that held the most (a plugin, ``_current_test.py``, says which test is running).
 
     python benchmarks/suite_memory.py                       # python -m pytest -q
     python benchmarks/suite_memory.py -- python -m pytest tests/test_env.py -q
@@ -34,14 +35,25 @@ def _children() -> dict[int, list[int]]:
     return tree
 
 
-def tree_rss(root: int) -> dict[int, int]:
-    """The RSS in bytes of ``root`` and of every process below it."""
+def proportional_size(pid: int) -> int:
+    """The PSS of process ``pid`` in bytes (its RSS where the kernel gives no ``smaps_rollup``)."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return int(Path(f"/proc/{pid}/statm").read_text().split()[1]) * PAGE
+
+
+def tree_memory(root: int) -> dict[int, int]:
+    """The PSS in bytes of ``root`` and of every process below it."""
     tree, found, stack = _children(), {}, [root]
     while stack:
         pid = stack.pop()
         try:
-            found[pid] = int(Path(f"/proc/{pid}/statm").read_text().split()[1]) * PAGE
-        except OSError:
+            found[pid] = proportional_size(pid)
+        except OSError:  # the process ended while being read
             continue
         stack += tree.get(pid, [])
     return found
@@ -62,14 +74,14 @@ def main() -> int:
         child = subprocess.Popen(command, env=environment)
         peak, peak_processes, peak_at, by_test = 0, 0, 0.0, {}
         while child.poll() is None:
-            sizes = tree_rss(child.pid)
+            sizes = tree_memory(child.pid)
             total = sum(sizes.values())
             test = Path(current.name).read_text() or "(collecting)"
             by_test[test] = max(by_test.get(test, 0), total)
             if total > peak:
                 peak, peak_processes, peak_at = total, len(sizes), time.perf_counter() - started
             time.sleep(args.every)
-    print(f"peak memory of the process tree: {peak / 2**30:.2f} GiB (summed RSS of {peak_processes} processes, "
+    print(f"peak memory of the process tree: {peak / 2**30:.2f} GiB (summed PSS of {peak_processes} processes, "
           f"{peak_at:.0f} s in); exit {child.returncode} after {time.perf_counter() - started:.0f} s", flush=True)
     for test, size in sorted(by_test.items(), key=lambda item: -item[1])[:args.top]:
         print(f"{size / 2**30:6.2f} GiB  {test}")
