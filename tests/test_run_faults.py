@@ -16,18 +16,19 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import test_run_safety
 import yaml
 from test_imitation import CONFIG as CLONE_CONFIG
 from test_rollout_workers import MASKED, agent
 from test_run_safety import PPO_SMALL, cli
-from test_run_safety import finished as _finished  # noqa: F401  (the fixture `finished`)
-from test_run_safety import run as _run  # noqa: F401  (the fixture `run`)
 from test_training import config_dict, interrupt_training_at
 
 from emmi_gym.concurrency.interrupts import RunStopped
 from emmi_gym.concurrency.parallel import ActorStalled
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.train import latest_checkpoint, make_vec_env, model_of, train
+
+finished, run = test_run_safety.finished, test_run_safety.run  # fixtures: a finished run, and a copy of it
 
 
 def files_of(folder) -> dict:
@@ -233,11 +234,11 @@ def test_sigterm_saves_a_checkpoint_exits_143_and_the_run_resumes_from_it(tmp_pa
     saved = latest_checkpoint(run_dir)
     assert f"saved {saved}" in out
     stopped_at = int(saved.stem.split("_")[1])
-    finished = train(parse_agent_config(agent(MASKED, total_timesteps=stopped_at + 12, checkpoint_freq=12,
-                                              policy_lag=1)), run_dir, resume=True, progress=False)
-    assert finished.timesteps >= stopped_at + 12
+    resumed = train(parse_agent_config(agent(MASKED, total_timesteps=stopped_at + 12, checkpoint_freq=12,
+                                             policy_lag=1)), run_dir, resume=True, progress=False)
+    assert resumed.timesteps >= stopped_at + 12
     record = yaml.safe_load((run_dir / "training.yaml").read_text())
-    assert record["timesteps"] == finished.timesteps and record["parts"][0]["end"] == stopped_at
+    assert record["timesteps"] == resumed.timesteps and record["parts"][0]["end"] == stopped_at
 
 
 def test_ctrl_c_before_training_starts_is_one_line(tmp_path, monkeypatch, capsys):

@@ -43,7 +43,10 @@ def check_model_fits(path, config: AgentConfig, what: str) -> int:
                        "configuration of the model's")
     network = config.hyperparameters.get("policy_kwargs")
     network = sb3_policy_kwargs(network) if network else {}
-    if model.policy_kwargs != network:
+    # the keys the configuration gives, and net_arch always (the algorithms add keys of their own: A2C its
+    # optimizer, SAC use_sde)
+    saved = {key: model.policy_kwargs.get(key) for key in {*network, "net_arch"}}
+    if saved != {key: network.get(key) for key in saved}:
         raise RunError(f"{what}: the model's network is policy_kwargs {model.policy_kwargs}, but {config.source} "
                        f"gives {network}: give a model of that network, or a configuration of the model's")
     env = gym.make(config.env_id, **config.env_kwargs)
