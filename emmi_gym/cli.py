@@ -77,17 +77,19 @@ def _cmd_clone(args: argparse.Namespace) -> int:
 
     if args.policy not in POLICY_NAMES:
         raise ValueError(f"--policy: unknown {args.policy!r}; choose from {list(POLICY_NAMES)}")
-    check_new_run_folder(Path(args.out), args.overwrite, resumable=False)
+    check_new_run_folder(Path(args.out), args.overwrite, resumable=False, inputs={"--demos": args.demos},
+                         files=CLONE_FILES)
     out = output_folder(args.out)
     config = load_agent_config(args.config)
     check_cloneable(config)  # before any episode is played
-    if args.overwrite:
-        clear_run_folder(out, CLONE_FILES)
     if args.demos:
         demonstrations = Demonstrations.load(*args.demos)  # checked, then read into one set of arrays
     else:
         demonstrations = collect_demonstrations(config, args.policy, args.episodes, args.seed, workers=args.workers,
                                                 progress=not args.quiet)
+    if args.overwrite:  # once every input is read
+        clear_run_folder(out, CLONE_FILES)
+    if not args.demos:
         demonstrations.save(out / "demonstrations.npz")
     print(f"{len(demonstrations)} decisions of {args.policy} in {demonstrations.episodes} episodes")
     model_path, losses, model = clone_run(config, demonstrations, out, epochs=args.epochs)
@@ -330,22 +332,31 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from .concurrency.interrupts import EXIT_INTERRUPTED, EXIT_TERMINATED, RunStopped, terminate_as_interrupt
+
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command not in NO_KERNELS and (note := first_run_note()) is not None:
         print(note, file=sys.stderr, flush=True)
-    try:
-        return args.func(args)
-    except MissingExtraError as exc:
-        parser.exit(2, f"emmi-gym {args.command}: error: {exc}\n")
-    except ModuleNotFoundError as exc:  # an optional extra the command needs: the line that installs it
-        missing = missing_extra(exc, f"{args.command!r}")
-        if missing is None:
-            raise
-        parser.exit(2, f"emmi-gym {args.command}: error: {missing}\n")
-    except (ValueError, KeyError, OSError) as exc:  # bad input, a file or folder: a message, not a traceback
-        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
-        parser.exit(2, f"emmi-gym {args.command}: error: {message}\n")
+    with terminate_as_interrupt() as terminated:  # SIGTERM stops a command as Ctrl-C does
+        try:
+            status = args.func(args)
+        except MissingExtraError as exc:
+            parser.exit(2, f"emmi-gym {args.command}: error: {exc}\n")
+        except ModuleNotFoundError as exc:  # an optional extra the command needs: the line that installs it
+            missing = missing_extra(exc, f"{args.command!r}")
+            if missing is None:
+                raise
+            parser.exit(2, f"emmi-gym {args.command}: error: {missing}\n")
+        except (ValueError, KeyError, OSError) as exc:  # bad input, a file or folder: a message, not a traceback
+            message = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+            parser.exit(2, f"emmi-gym {args.command}: error: {message}\n")
+        except RunStopped as exc:  # a worker died or stalled: what the run saved, and how to go on
+            parser.exit(1, f"emmi-gym {args.command}: error: {exc}\n")
+        except KeyboardInterrupt as exc:  # before a run could save anything, or with what it kept
+            parser.exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED,
+                        f"\nemmi-gym {args.command}: interrupted{f': {exc}' if str(exc) else ''}\n")
+    return EXIT_TERMINATED if terminated and status == EXIT_INTERRUPTED else status
 
 
 if __name__ == "__main__":

@@ -316,6 +316,7 @@ def training_probes(folder: Path) -> list[Probe]:
     # 12. obs_size at its lower bound
     probes.append(Probe("12. train with obs_size: 32", [*cli, "train", cfg["obs32"], "--out", str(f / "T12"),
                                                          "--quiet"], r"obs_size", success=lambda *_: None, either=True))
+    probes += _fault_probes(f, cli, cfg, run, run_copy)
     # the pretrained agents as the README loads them
     probes += [
         Probe("README: import emmi_gym; emmi_gym.pretrained.load(NAME)",
@@ -326,5 +327,70 @@ def training_probes(folder: Path) -> list[Probe]:
                     "wanted = emmi_gym.pretrained.config(name).env_kwargs; "
                     "print('same keywords' if all(env.spec.kwargs.get(k) == v for k, v in wanted.items()) else "
                     "'other keywords')"], success=lambda last, _: None if last == "same keywords" else last),
+    ]
+    return probes
+
+
+def _fault_probes(f: Path, cli: list, cfg: dict, run: Path, run_copy) -> list[Probe]:
+    """The second audit's mistakes: an overwrite reading its own folder, a resume below what is trained, damaged
+    or hand-edited run files, a benchmark's arguments and budgets, and the smaller inputs (numbered as the
+    audit numbered them)."""
+    probes = []
+    r1 = run_copy("F1")
+    for model in (r1 / "model.zip", r1 / "checkpoints" / "model_8_steps.zip"):
+        probes.append(Probe(f"F1. train --overwrite --init-from {model.relative_to(r1)} of R --out R",
+                            [*cli, "train", cfg["corridor24"], "--overwrite", "--init-from", str(model), "--out",
+                             str(r1), "--quiet"], r"--init-from .* is a file of the run in",
+                            keep=[r1 / "model.zip", r1 / "checkpoints" / "model_8_steps.zip", r1 / "training.yaml"]))
+    c1 = f / "F1_clone"
+    c1.mkdir()
+    np.savez(c1 / "demonstrations.npz", **_demonstrations())
+    probes.append(Probe("F1. clone --overwrite --demos C/demonstrations.npz --out C",
+                        [*cli, "clone", cfg["corridor"], "--overwrite", "--demos", str(c1 / "demonstrations.npz"),
+                         "--out", str(c1), "--quiet"], r"--demos .* is a file of the run in",
+                        keep=[c1 / "demonstrations.npz"]))
+    bench = [*cli, "benchmark", "--config", cfg["corridor"], "--seeds", "1", "--episodes", "1", "--quiet"]
+    b3 = f / "F3"
+    (b3 / "runs" / "emmi_seed0").mkdir(parents=True)
+    shutil.copytree(run, b3 / "runs" / "emmi_seed0", dirs_exist_ok=True)
+    kept = yaml.safe_load((run / "config.yaml").read_text())
+    kept.update(env=dict(kept["env"], kwargs=dict(kept["env"]["kwargs"], reward="emmi")), seed=0, policy_lag=0)
+    (b3 / "runs" / "emmi_seed0" / "config.yaml").write_text(yaml.safe_dump(kept))
+    probes += [
+        Probe("F3. benchmark into its own folder with a smaller --timesteps", [*bench, "--rewards", "emmi",
+                                                                              "--baselines", "--timesteps", "8",
+                                                                              "--out", str(b3)],
+              r"a larger budget than --timesteps 8", keep=[b3 / "runs" / "emmi_seed0" / "config.yaml"]),
+        Probe("F4. benchmark --rewards emmi emmi", [*bench, "--rewards", "emmi", "emmi", "--baselines", "--out",
+                                                    str(f / "F4")], r"--rewards: emmi given more than once"),
+        Probe("F11. benchmark --baselines bogus", [*bench, "--rewards", "emmi", "--baselines", "bogus", "--out",
+                                                   str(f / "F11")], r"--baselines: unknown \['bogus'\]"),
+    ]
+    r5 = run_copy("F5")
+    probes.append(Probe("F5. train --resume --timesteps 8 on a finished 16-decision run",
+                        [*cli, "train", cfg["corridor"], "--resume", "--timesteps", "8", "--out", str(r5), "--quiet"],
+                        r"holds 16 decisions", keep=[r5 / "model.zip", r5 / "config.yaml", r5 / "training.yaml"]))
+    r8 = run_copy("F8")
+    record = yaml.safe_load((r8 / "training.yaml").read_text())
+    (r8 / "training.yaml").write_text(yaml.safe_dump(dict(record, parts=[dict(record["parts"][0], end=4)])))
+    probes.append(Probe("F8. train --resume with training.yaml parts that do not add up",
+                        [*cli, "train", cfg["corridor24"], "--resume", "--out", str(r8), "--quiet"],
+                        r"expected parts that add up", keep=[r8 / "config.yaml", r8 / "training.yaml"]))
+    r8b = run_copy("F8b")
+    edited = yaml.safe_load((r8b / "config.yaml").read_text())
+    edited["hyperparameters"]["policy_kwargs"] = {"net_arch": [5]}
+    (r8b / "config.yaml").write_text(yaml.safe_dump(edited))
+    probes.append(Probe("F8. train --resume with a hand-edited config.yaml (another net_arch)",
+                        [*cli, "train", str(r8b / "config.yaml"), "--resume", "--timesteps", "24", "--out",
+                         str(r8b), "--quiet"], r"the model's network is policy_kwargs",
+                        keep=[r8b / "config.yaml", r8b / "training.yaml", r8b / "model.zip"]))
+    (f / "F11_curve").mkdir()
+    (f / "F11_curve" / "eval_ground_truth.csv").write_text(MEASURES + "-8,0.5,0.2,100,0.4\n16,0.6,0.1,90,0.5\n")
+    probes += [
+        Probe("F11. learning-curves: negative timesteps", [*cli, "learning-curves", str(f / "F11_curve"), "--out",
+                                                          str(f / "F11.png")], r"timesteps.*0 or more"),
+        Probe("F11. compare-policies --options with a world beside --worlds",
+              [*cli, "compare-policies", "--options", '{"world": "x.yaml"}', "--out", str(f / "F11_cmp")],
+              r"--options: a world"),
     ]
     return probes

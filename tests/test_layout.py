@@ -12,7 +12,7 @@ ALLOWED = {
     "inputs": set(),
     "concurrency": {"inputs"},
     "geometry": set(),
-    "formats": {"inputs"},
+    "formats": {"inputs", "geometry"},
     "certainty": {"concurrency"},
     "navigation": {"geometry", "certainty"},
     "world": {"geometry", "inputs", "formats", "navigation"},

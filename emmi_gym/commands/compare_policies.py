@@ -47,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from ..experiments.report import write_csv
     from ..inputs.env_ids import check_env_id
+    from ..inputs.errors import excerpt
     from ..inputs.json_files import parse_json
     from ..inputs.paths import output_folder
     from ..inputs.validation import build
@@ -56,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
     if not isinstance(options, dict):
         raise ValueError(f"--options: expected a JSON object of options ({{\"name\": value, ...}}), got "
                          f"{args.options[:80]!r}")
+    if "world" in options:
+        raise ValueError(f"--options: a world ({excerpt(options['world'])}) is --worlds's to give: every episode is "
+                         "played on one of --worlds, so pass it there")
     check_env_id(args.env_id, "command line", "--env-id")
     unknown = sorted(set(args.policies) - set(POLICY_NAMES))
     if unknown:

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import pickle
 import signal
+import threading
+import time
 from collections.abc import Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, as_completed, wait
 
@@ -26,7 +29,8 @@ def run_in_processes(function, jobs: Iterable, *, total: int | None = None, work
     its kernels on one thread; 1 = in this process), in the order they finish. ``jobs`` may be a
     generator (``total``: how many it gives): a few jobs per worker are taken from it at a time, so a
     long list of jobs is never built. ``start_method`` picks the multiprocessing context ("spawn" for
-    jobs that use torch)."""
+    jobs that use torch). A Ctrl-C (or SIGTERM, where the command handles it as one) stops every worker's
+    job as it would stop the job in this process (:func:`_stop_pool`), and is raised here once they ended."""
     total = len(jobs) if total is None else total
     workers = max(1, min(total, workers or os.cpu_count() or 1))
     results = []
@@ -36,46 +40,145 @@ def run_in_processes(function, jobs: Iterable, *, total: int | None = None, work
                 results.append(function(job))
                 bar.update()
             return results
-        context = mp.get_context(start_method) if start_method else None
-        with ProcessPoolExecutor(workers, mp_context=context, initializer=one_kernel_thread) as pool:
-            running: set = set()
-            for job in jobs:
-                if len(running) >= 2 * workers:  # a job queued behind each running one keeps every worker busy
-                    finished, running = wait(running, return_when=FIRST_COMPLETED)
-                    results.extend(future.result() for future in finished)
-                    bar.update(len(finished))
-                running.add(pool.submit(function, job))
-            for future in as_completed(running):
-                results.append(future.result())
-                bar.update()
+        context = mp.get_context(start_method) if start_method else mp.get_context()
+        started = context.SimpleQueue()  # each worker's pid, so that a Ctrl-C can be passed on to it
+        with ProcessPoolExecutor(workers, mp_context=context, initializer=_pool_worker,
+                                 initargs=(started,)) as pool:
+            try:
+                running: set = set()
+                for job in jobs:
+                    if len(running) >= 2 * workers:  # a job queued behind each running one keeps every worker busy
+                        finished, running = wait(running, return_when=FIRST_COMPLETED)
+                        results.extend(future.result() for future in finished)
+                        bar.update(len(finished))
+                    running.add(pool.submit(_pool_job, function, job))
+                for future in as_completed(running):
+                    results.append(future.result())
+                    bar.update()
+            except KeyboardInterrupt:
+                _stop_pool(pool, started)
+                raise
     return results
+
+
+#: A pool worker's state: whether a job runs in it (Ctrl-C then interrupts the job), and whether the pool stops
+#: (no other job starts).
+_pool_state = {"job": False, "stopping": False}
+
+
+def _pool_worker(started) -> None:
+    """A pool worker's start: its pid to the queue ``started``, its kernels on one thread, out of the terminal's
+    process group (the parent passes Ctrl-C on, once), Ctrl-C handled by :func:`_interrupt_pool_worker` and
+    SIGTERM as Ctrl-C."""
+    from .interrupts import as_ctrl_c
+
+    started.put(os.getpid())
+    one_kernel_thread()
+    leave_terminal_signals()
+    signal.signal(signal.SIGINT, _interrupt_pool_worker)
+    signal.signal(signal.SIGTERM, as_ctrl_c)
+
+
+def _interrupt_pool_worker(signum, frame) -> None:
+    """Ctrl-C in a pool worker: no other job starts, and the job under way is interrupted (an idle worker, whose
+    Ctrl-C would print a traceback from the pool's own code, just ends once the pool shuts down)."""
+    _pool_state["stopping"] = True
+    if _pool_state["job"]:
+        raise KeyboardInterrupt
+
+
+def _pool_job(function, job):
+    """``function(job)`` in a pool worker, unless the pool is stopping (a job the pool had queued ahead)."""
+    if _pool_state["stopping"]:
+        raise KeyboardInterrupt
+    _pool_state["job"] = True
+    try:
+        return function(job)
+    except KeyboardInterrupt:  # the job stopped on Ctrl-C (its own handler's, say): none other starts
+        _pool_state["stopping"] = True
+        raise
+    finally:
+        _pool_state["job"] = False
+
+
+def _stop_pool(pool: ProcessPoolExecutor, started) -> None:
+    """After a Ctrl-C in this process: pass it on to each worker that ``started`` says was started (their jobs
+    stop as they would here, a training run saving a checkpoint), cancel the jobs not started and wait for the
+    workers to end; a second Ctrl-C meanwhile is ignored."""
+    handlers = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)} \
+        if threading.current_thread() is threading.main_thread() else {}
+    try:
+        while not started.empty():
+            try:
+                os.kill(started.get(), signal.SIGINT)
+            except ProcessLookupError:
+                pass
+        pool.shutdown(wait=True, cancel_futures=True)
+    finally:
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
 
 
 #: The start method of :class:`ProcessActor` processes, as Stable-Baselines3's ``SubprocVecEnv`` picks it: a fork
 #: of a process running torch's or the kernels' threads can deadlock.
 ACTOR_START_METHOD = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+#: Seconds a :class:`ProcessActor` is given to end after ``SIGTERM`` before it is killed (a stopped process
+#: takes no signal but ``SIGKILL``).
+TERMINATE_TIMEOUT = 1.0
 
 
 class ActorFailed(RuntimeError):
     """A :class:`ProcessActor`'s process stopped, or its object raised; says which actor and what happened."""
 
 
-def _serve(connection, factory, args) -> None:
-    """The actor process: build ``factory(*args)``, then run each ``(method, args)`` received and send back
-    ``("ok", result)`` or ``("error", message)`` until ``None`` arrives. Ctrl-C is the parent's to handle."""
+class ActorStalled(ActorFailed):
+    """A :class:`ProcessActor`'s process made no progress (:func:`beat`) within its heartbeat timeout."""
+
+
+#: The actor's heartbeat in an actor's process (a shared counter), None elsewhere.
+_heartbeat = None
+
+
+def beat() -> None:
+    """Tell the parent of this actor process that it is making progress (a decision played, say); nothing
+    outside an actor's process. See :meth:`ProcessActor.result`."""
+    if _heartbeat is not None:
+        _heartbeat.value += 1
+
+
+def leave_terminal_signals() -> None:
+    """Ignore Ctrl-C and leave the terminal's process group: Ctrl-C, and a SIGTERM sent to the group (``timeout``
+    sends one), reach the parent alone, which stops its work, saves it and closes its workers."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        target = factory(*args)
-        connection.send(("ok", None))
-        while (call := connection.recv()) is not None:
+        os.setpgid(0, 0)
+    except OSError:  # a group leader already
+        pass
+
+
+def _serve(connection, factory, args, heartbeat) -> None:
+    """The actor process: build ``factory(*args)``, then run each ``(method, args)`` received and send back
+    ``("ok", result)`` or ``("error", message)`` until ``None`` arrives (each message pickled here, so that no
+    tensor is shared through file descriptors the parent must still serve). Signals are the parent's to
+    handle; once the parent is gone the process ends quietly."""
+    global _heartbeat
+    _heartbeat = heartbeat
+    leave_terminal_signals()
+    try:
+        try:
+            target = factory(*args)
+            reply = ("ok", None)
+        except Exception as error:  # noqa: BLE001 - the object could not be built
+            target, reply = None, ("error", f"{type(error).__name__}: {error}")
+        connection.send_bytes(pickle.dumps(reply, pickle.HIGHEST_PROTOCOL))
+        while target is not None and (call := pickle.loads(connection.recv_bytes())) is not None:
             method, call_args = call
             try:
-                connection.send(("ok", getattr(target, method)(*call_args)))
+                reply = ("ok", getattr(target, method)(*call_args))
             except Exception as error:  # noqa: BLE001 - any failure goes back to the caller
-                connection.send(("error", f"{type(error).__name__}: {error}"))
-    except Exception as error:  # noqa: BLE001 - the object could not be built
-        connection.send(("error", f"{type(error).__name__}: {error}"))
-    except (EOFError, KeyboardInterrupt):  # the parent went away
+                reply = ("error", f"{type(error).__name__}: {error}")
+            connection.send_bytes(pickle.dumps(reply, pickle.HIGHEST_PROTOCOL))
+    except (EOFError, OSError, KeyboardInterrupt):  # the parent went away
         pass
     finally:
         connection.close()
@@ -84,34 +187,56 @@ def _serve(connection, factory, args) -> None:
 class ProcessActor:
     """An object built by ``factory(*args)`` in a local process of its own (the Ray actor's model, with
     ``multiprocessing``): :meth:`submit` starts one of its methods there, :meth:`result` waits for what it
-    returned. A failure in the process, or its end, is an :class:`ActorFailed` naming ``name``, never a hang.
-    The process ignores Ctrl-C (the parent handles it and closes the actor)."""
+    returned. A failure in the process, or its end, is an :class:`ActorFailed` naming ``name``, never a hang,
+    and a call that makes no progress (:func:`beat` in the process) within the heartbeat timeout its result is
+    waited for with is an :class:`ActorStalled`. The process ignores Ctrl-C and leaves the terminal's process
+    group (:func:`leave_terminal_signals`): the parent handles them and closes the actor."""
 
     def __init__(self, name: str, factory, *args, start_method: str = ACTOR_START_METHOD):
         context = mp.get_context(start_method)
         self.name = name
+        self._heartbeat = context.Value("Q", 0, lock=False)
         self._connection, child = context.Pipe()
-        self.process = context.Process(target=_serve, args=(child, factory, args), daemon=True, name=name)
+        self.process = context.Process(target=_serve, args=(child, factory, args, self._heartbeat), daemon=True,
+                                       name=name)
         self.process.start()
         child.close()  # only the process holds its end: its exit ends the pipe, and recv raises EOFError
         self._waiting = True  # for the object to be built
         self._closing = False
+        self._sending: threading.Thread | None = None
+        self._send_error: Exception | None = None
 
     def submit(self, method: str, *args) -> None:
-        """Start ``method(*args)`` in the process (after the previous call's result was read)."""
+        """Start ``method(*args)`` in the process (after the previous call's result was read). The call is sent
+        on a thread of its own: a process that does not read (stopped) must not block this one, whose
+        :meth:`result` then says so."""
         if self._waiting:
             self.result()
-        try:
-            self._connection.send((method, args))
-        except (OSError, ValueError) as error:
-            raise ActorFailed(f"{self.name}: the process has stopped ({error})") from None
+        self._send_error = None
+        self._sending = threading.Thread(target=self._send, args=(pickle.dumps((method, args),
+                                                                               pickle.HIGHEST_PROTOCOL),),
+                                         daemon=True, name=f"{self.name}: sending")
+        self._sending.start()
         self._waiting = True
 
-    def result(self):
-        """What the submitted call returned; raises :class:`ActorFailed` if it raised or the process ended."""
-        self._waiting = False
+    def _send(self, message: bytes) -> None:
         try:
-            status, value = self._connection.recv()
+            self._connection.send_bytes(message)
+        except (OSError, ValueError) as error:  # the process has stopped (or was closed meanwhile)
+            self._send_error = error
+
+    def result(self, heartbeat_timeout: float | None = None):
+        """What the submitted call returned; raises :class:`ActorFailed` if it raised or the process ended, and
+        :class:`ActorStalled` if it made no progress for ``heartbeat_timeout`` seconds (None: no bound)."""
+        self._waiting = False
+        if heartbeat_timeout is not None:
+            self._wait_for_progress(heartbeat_timeout)
+        elif self._sending is not None:
+            self._sending.join()
+        if self._send_error is not None:
+            raise ActorFailed(f"{self.name}: the process has stopped ({self._send_error})")
+        try:
+            status, value = pickle.loads(self._connection.recv_bytes())
         except (EOFError, OSError):
             self.process.join(1.0)
             raise ActorFailed(f"{self.name}: the process has stopped (exit code {self.process.exitcode})") from None
@@ -119,20 +244,41 @@ class ProcessActor:
             raise ActorFailed(f"{self.name}: {value}")
         return value
 
+    def _wait_for_progress(self, timeout: float) -> None:
+        """Wait until a reply (or the pipe's end) can be read; :class:`ActorStalled` if the heartbeat stands still
+        for ``timeout`` seconds."""
+        beats, since = self._heartbeat.value, time.monotonic()
+        while True:
+            if self._sending is not None and self._sending.is_alive():
+                self._sending.join(min(1.0, timeout))
+            elif self._send_error is not None or self._connection.poll(min(1.0, timeout)):
+                return
+            if self._heartbeat.value != beats:
+                beats, since = self._heartbeat.value, time.monotonic()
+            elif time.monotonic() - since > timeout:
+                raise ActorStalled(f"{self.name} (process {self.process.pid}) has made no progress for {timeout:g} "
+                                   "s: it was stopped, or is stuck in its env")
+
     def ask_to_close(self) -> None:
         """Ask the process to end once the call under way, if any, is done."""
         if not self._closing:
             self._closing = True
+            if self._sending is not None and self._sending.is_alive():  # not reading: it is ended by close
+                return
             try:
-                self._connection.send(None)
+                self._connection.send_bytes(pickle.dumps(None))
             except (OSError, ValueError):
                 pass
 
     def close(self, timeout: float) -> None:
-        """Ask the process to end, wait up to ``timeout`` seconds (it may be amid a call), then terminate it."""
+        """Ask the process to end, wait up to ``timeout`` seconds (it may be amid a call), then terminate it (and
+        kill it if it is still there :data:`TERMINATE_TIMEOUT` s later: stopped, say)."""
         self.ask_to_close()
         self.process.join(timeout)
         if self.process.is_alive():
             self.process.terminate()
+            self.process.join(TERMINATE_TIMEOUT)
+        if self.process.is_alive():
+            self.process.kill()
             self.process.join()
         self._connection.close()

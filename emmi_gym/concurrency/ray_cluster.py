@@ -3,22 +3,47 @@ benchmark jobs as Ray tasks, training envs and rollout workers as Ray actors."""
 
 from __future__ import annotations
 
+import ipaddress
+import socket
+import warnings
+from urllib.parse import urlsplit
+
 from ..inputs.extras import missing_extra
 
 #: The address that starts a Ray instance on this machine instead of joining a cluster.
 LOCAL = "local"
 
 
+def public_host(address: str) -> str | None:
+    """The host of a Ray ``address`` (``host:port`` or ``ray://host:port``) if it is neither a private nor a
+    loopback address (nor a name that resolves only to such); None otherwise, or if it does not resolve."""
+    host = urlsplit(address if "://" in address else f"ray://{address}").hostname
+    if host is None:
+        return None
+    try:
+        found = {ipaddress.ip_address(info[4][0].split("%")[0]) for info in socket.getaddrinfo(host, None)}
+    except (OSError, UnicodeError):
+        return None
+    return None if all(ip.is_private or ip.is_loopback for ip in found) else host
+
+
 def connect_ray(address: str | None = LOCAL):
     """Connect to the Ray cluster at ``address`` (``"local"``: start one on this machine; ``None``:
     Ray's own default, the ``RAY_ADDRESS`` environment variable, else a local instance) unless this
-    process is connected already. Returns ``(ray, started_here)``: the caller shuts down what it started."""
+    process is connected already, with a warning if the address is not a private or loopback one (a Ray
+    cluster has no authentication: whoever reaches its ports runs code on its nodes). Returns ``(ray,
+    started_here)``: the caller shuts down what it started."""
     try:
         import ray
     except ModuleNotFoundError as error:
         raise missing_extra(error, "Ray") or error from None
     if ray.is_initialized():
         return ray, False
+    host = None if address in (None, LOCAL, "auto") else public_host(address)
+    if host is not None:
+        warnings.warn(f"--ray {address}: {host} is not a private or loopback address; a Ray cluster has no "
+                      "authentication (whoever reaches its ports runs code on every node): keep its head on a "
+                      "private network (see docs/scaling.md)", stacklevel=2)
     ray.init(address=None if address in (None, LOCAL) else address, include_dashboard=False,
              logging_level="ERROR", log_to_driver=False)
     return ray, True
@@ -38,7 +63,10 @@ class RayActor:
     def submit(self, method: str, *args) -> None:
         self._reply = getattr(self.actor, method).remote(*args)
 
-    def result(self):
+    def result(self, heartbeat_timeout: float | None = None):
+        """What the submitted call returned; what the actor raised, or its end, as an
+        :class:`~emmi_gym.concurrency.parallel.ActorFailed`. Ray watches its actors' processes itself; no
+        heartbeat is kept (``heartbeat_timeout`` is :class:`~emmi_gym.concurrency.parallel.ProcessActor`'s)."""
         from .parallel import ActorFailed
 
         reply, self._reply = self._reply, None

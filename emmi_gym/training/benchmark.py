@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from ..concurrency.interrupts import Interrupted
 from ..concurrency.parallel import run_in_processes
 from ..concurrency.ray_cluster import connect_ray
 from ..experiments.episodes import PolicyActor, nanmean, play_episodes
@@ -78,9 +79,11 @@ def run_job(job: Job) -> dict:
         trained = state != "finished"
         if trained:
             resume = state == "unfinished"
-            model_path = train(job.config, job.run_dir, resume=resume, progress=False,
-                               init_from=None if resume else job.init_from,
-                               allow_no_training=job.allow_no_training).model_path
+            result = train(job.config, job.run_dir, resume=resume, progress=False,
+                           init_from=None if resume else job.init_from, allow_no_training=job.allow_no_training)
+            if result.interrupted:  # its checkpoint is kept for the next run of the benchmark, never evaluated
+                raise KeyboardInterrupt
+            model_path = result.model_path
         rows = evaluate_model(model_path, job.episodes, job.episode_seed)
         evaluations = job.run_dir / "eval_ground_truth.csv"
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
@@ -102,8 +105,10 @@ def run_job(job: Job) -> dict:
 def run_state(job: Job) -> str:
     """What the agent job's run folder holds: ``"new"`` (nothing), ``"finished"`` (the finished model of the
     same configuration, started from the same model: a benchmark run again into the same folder evaluates
-    it instead of training again), ``"unfinished"`` (a run of them that stopped before its end: resumed), or
-    ``"other"`` (anything else: refused by :func:`run_benchmark` before any job starts)."""
+    it instead of training again), ``"unfinished"`` (a run of them that stopped before its end, or that
+    finished a smaller budget: resumed, to the budget asked), ``"larger"`` (a run of them to a larger budget
+    than asked: never cut back, nor reported under the smaller) or ``"other"`` (anything else); the last two
+    are refused by :func:`run_benchmark` before any job starts."""
     from .config import load_agent_config
     from .model_files import saved_decisions
     from .train import training_record
@@ -117,9 +122,12 @@ def run_state(job: Job) -> str:
     if not same:
         return "other"
     model = job.run_dir / "model.zip"
+    budget = load_agent_config(own).total_timesteps
+    if budget > job.config.total_timesteps:
+        return "larger"
     # the budget and the model must both be this job's: a run extended to a larger budget and stopped before
     # its end holds the new budget beside the model of the old one
-    finished = model.is_file() and load_agent_config(own).total_timesteps == job.config.total_timesteps and \
+    finished = model.is_file() and budget == job.config.total_timesteps and \
         saved_decisions(model) >= job.config.total_timesteps
     return "finished" if finished else "unfinished"
 
@@ -130,7 +138,17 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
     parallel already; each from the weights of the model ``init_from``, if given, as ``train
     --init-from``) and one job per scripted baseline; every job is evaluated on the ``episodes``
     held-out episodes seeded from ``eval_seed``."""
+    from ..policies import POLICY_NAMES
+
     out = Path(out_dir)
+    for option, names in (("--rewards", rewards), ("--seeds", seeds), ("--baselines", baselines)):
+        twice = sorted({str(name) for name in names if list(names).count(name) > 1})
+        if twice:
+            raise ValueError(f"{option}: {', '.join(twice)} given more than once (each would train or play into "
+                             "the same folder at once)")
+    unknown = sorted(set(baselines) - set(POLICY_NAMES))
+    if unknown:
+        raise ValueError(f"--baselines: unknown {unknown}; choose from {list(POLICY_NAMES)}")
     if baselines and _action_mode(config) != "waypoint":
         raise ValueError(f"the scripted baselines {list(baselines)} choose waypoint targets, but {config.env_id} "
                          f"acts in {_action_mode(config)} mode: pass --baselines with no names")
@@ -188,16 +206,26 @@ def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes:
         start = check_init_from(init_from, agents[0].config, allow_no_training)
         if report is not None:
             report(f"every agent: {RunStart(start.path, start.path).summary(start.decisions, timesteps)}")
-    taken = [str(job.run_dir) for job in agents if run_state(job) == "other"]
+    states = {job.run_dir: run_state(job) for job in agents}
+    taken = [str(folder) for folder, state in states.items() if state == "other"]
     if taken:
         raise RunError(f"{', '.join(taken[:4])}{' ...' if len(taken) > 4 else ''}: not empty, and not a run of this "
                        "benchmark's configuration (reward, seed, budget, --init-from): remove it or give another "
                        "--out")
-    if ray_address is not None:
-        results = _ray(jobs, ray_address, progress)
-    else:
-        results = run_in_processes(run_job, jobs, workers=workers, desc="benchmark runs", progress=progress,
-                                   start_method="spawn")
+    larger = [str(folder) for folder, state in states.items() if state == "larger"]
+    if larger:
+        raise RunError(f"{', '.join(larger[:4])}{' ...' if len(larger) > 4 else ''}: a run of this benchmark to "
+                       f"a larger budget than --timesteps {timesteps} (its config.yaml's total_timesteps): give that "
+                       "budget or more, or another --out")
+    try:
+        if ray_address is not None:
+            results = _ray(jobs, ray_address, progress)
+        else:
+            results = run_in_processes(run_job, jobs, workers=workers, desc="benchmark runs", progress=progress,
+                                       start_method="spawn")
+    except KeyboardInterrupt:
+        raise Interrupted(f"the agents stopped keep their checkpoints in {Path(out_dir) / 'runs'}; run the same "
+                          "command again to go on from them (nothing was reported)") from None
     return sorted(results, key=lambda r: (r["job"].kind, r["job"].variant, r["job"].seed))
 
 

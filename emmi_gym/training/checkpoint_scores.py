@@ -60,7 +60,8 @@ def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
     if not run_dir.is_dir():
         raise FileNotFoundError(f"{run_dir}: expected a run folder of 'emmi-gym train', not "
                                 f"{file_kind(run_dir.stat().st_mode)}")
-    found = [(decisions, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
+    # each at the decisions its model holds (a file's name may say anything)
+    found = sorted((saved_decisions(path), path) for _, path in checkpoints(run_dir) if is_whole_checkpoint(path))
     final = run_dir / "model.zip"
     if final.is_file() and is_whole_checkpoint(final):
         finished_at = saved_decisions(final)

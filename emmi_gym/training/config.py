@@ -8,7 +8,8 @@ steps of robot time instead of per decision (semi-Markov discounting of macro-ac
 from another configuration and overrides what the file gives (dicts are merged key by key,
 but ``hyperparameters`` are replaced whole: they belong to one algorithm), so the reward
 variants of one agent are one line each. ``policy_lag: 1`` lets rollout workers play the next
-fragment while the learner updates (see :mod:`emmi_gym.training.rollout_workers`). Every mistake raises
+fragment while the learner updates (see :mod:`emmi_gym.training.rollout_workers`); ``worker_timeout``: the
+seconds a rollout worker may go without playing a decision before the run stops, naming it. Every mistake raises
 :class:`AgentConfigError` naming the file, the field and what was expected.
 """
 
@@ -47,7 +48,7 @@ ROLLOUT_WORKERS = ("workers", "ray_workers")
 #: The algorithms that learn from rollouts (collected by rollout workers by default).
 ON_POLICY = ("PPO", "A2C", "MaskablePPO")
 _KEYS = ("base", "env", "algorithm", "policy", "hyperparameters", "discount_unit", "n_envs", "vec_env",
-         "policy_lag", "total_timesteps", "seed", "eval", "checkpoint_freq")
+         "policy_lag", "worker_timeout", "total_timesteps", "seed", "eval", "checkpoint_freq")
 
 
 class AgentConfigError(FieldError):
@@ -107,6 +108,7 @@ class AgentConfig:
     n_envs: int = field(default_factory=lambda: default_n_envs())
     vec_env: str = "subproc"
     policy_lag: int = 0
+    worker_timeout: float = 600.0
     total_timesteps: int = 20_000
     seed: int = 0
     eval: EvalSchedule = EvalSchedule()
@@ -419,6 +421,7 @@ def parse_agent_config(data: dict, source: str = "<dict>") -> AgentConfig:
         discount_unit=discount_unit, n_envs=field("n_envs", Integer(1, MAX_ENVS, "each env is a process with its "
                                                                     "own filter, 100-300 MB"), default_n_envs()),
         vec_env=_vec_env(source, algorithm, data.get("vec_env")), policy_lag=field("policy_lag", Integer(0, 1), 0),
+        worker_timeout=field("worker_timeout", Real(0.0, 86_400.0, open_lo=True), 600.0),
         total_timesteps=field("total_timesteps", _STEPS, 20_000),
         seed=field("seed", Integer(0, 2**32 - 1), 0), eval=eval_schedule,
         checkpoint_freq=field("checkpoint_freq", _STEPS, 5000), source=source)

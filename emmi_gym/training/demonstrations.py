@@ -19,9 +19,9 @@ from ..inputs.errors import FieldError
 from ..inputs.npz_files import NpzArray, npz_arrays, read_array_into
 from ..inputs.paths import write_atomically
 
-#: The most a demonstrations file (or the files fitted together) may unpack to (100,000 decisions of the
-#: 64 x 64 plans observation take 0.8 GiB).
-MAX_DEMONSTRATION_BYTES = 4 * 2**30
+#: The most a demonstrations file (or the files fitted together) may unpack to: 65,000 decisions of the 64 x 64
+#: plans observation (a thousand episodes or more), which ``clone`` fits in under 1 GB in all.
+MAX_DEMONSTRATION_BYTES = 512 * 2**20
 #: Rows of observations checked for NaN and infinities at a time (bounds the check's own memory).
 _ROWS_CHECKED = 4096
 
@@ -69,7 +69,7 @@ class Demonstrations:
         total = sum(array.nbytes for _, arrays in files for array in arrays.values())
         if total > MAX_DEMONSTRATION_BYTES:
             raise DemonstrationsError(", ".join(str(path) for path, _ in files), "", f"demonstrations of at most "
-                                      f"{MAX_DEMONSTRATION_BYTES // 2**30} GiB", f"{total / 2**30:,.1f} GiB in all")
+                                      f"{MAX_DEMONSTRATION_BYTES // 2**20} MiB", f"{total / 2**20:,.0f} MiB in all")
         rows = [arrays["actions"].shape[0] for _, arrays in files]
         joined = {name: np.empty((sum(rows), *array.shape[1:]), array.dtype)
                   for name, array in wanted.items() if name != "episodes"}

@@ -48,6 +48,9 @@ def read_curve(path) -> dict[str, np.ndarray]:
              if column in rows[0]}
     if not np.isfinite(curve["timesteps"]).all():
         raise CsvFileError(str(path), "timesteps", "a number of decisions on every row", "an empty or non-finite cell")
+    if (curve["timesteps"] < 0).any():
+        raise CsvFileError(str(path), "timesteps", "a number of decisions (0 or more) on every row",
+                           float(curve["timesteps"].min()))
     _check_finite(path, curve)
     return curve
 

@@ -133,14 +133,20 @@ def _checked_members(archive: zipfile.ZipFile, where: str) -> list[str]:
 
 def load_model_file(path, algorithm: str, **kwargs):
     """The SB3 model in ``path`` as ``algorithm``, after :func:`check_model_file`; ``kwargs`` go to SB3's
-    ``load`` (with ``env`` rollout workers, a model that collects from them). What SB3 still finds wrong is a
+    ``load`` (with ``env`` rollout workers, a model that collects from them). What SB3 still finds wrong, and
+    weights that are not all finite (which would act as a torch error printing the tensors), are a
     :class:`ModelFileError` naming the file."""
+    from .callbacks import first_non_finite
     from .rollout_workers import algorithm_for
 
     path = check_model_file(path, algorithm)
     try:
-        return algorithm_for(algorithm_class(algorithm), kwargs.get("env")).load(path, **kwargs)
+        model = algorithm_for(algorithm_class(algorithm), kwargs.get("env")).load(path, **kwargs)
     except (ValueError, TypeError, KeyError, AssertionError, AttributeError, RuntimeError, EOFError,
             zipfile.BadZipFile, pickle.UnpicklingError) as exc:  # torch.load(weights_only=True) raises the last
         raise ModelFileError(str(path), "", f"a {algorithm} model that Stable-Baselines3 can load "
                              f"({type(exc).__name__}: {str(exc)[:200]})") from None
+    bad = first_non_finite(model.policy)
+    if bad is not None:
+        raise ModelFileError(str(path), "", f"a model whose weights are all finite; {bad}")
+    return model

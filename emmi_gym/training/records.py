@@ -72,4 +72,22 @@ def read_training_record(path) -> dict:
     :class:`TrainingRecordError` naming the file and field for anything else."""
     data = read_yaml_file(path, "training record", TrainingRecordError)
     record = build(TrainingRecord, data, "", str(path), error=TrainingRecordError)
+    if "parts" in data:
+        _check_totals(str(path), record)
     return {name: value for name, value in asdict(record).items() if name in data}
+
+
+def _check_totals(where: str, record: TrainingRecord) -> None:
+    """:class:`TrainingRecordError` unless the parts of ``record`` add up, as training writes them: each starts
+    where the one before ended (the first at ``init_decisions``), the last ends at ``timesteps``, and
+    ``wall_seconds`` is their sum (each rounded to a tenth)."""
+    starts = [record.init_decisions, *(part["end"] for part in record.parts)]
+    chained = all(part["start"] == start for part, start in zip(record.parts, starts, strict=False))
+    wall_seconds = sum(part["wall_seconds"] for part in record.parts)
+    if not chained or starts[-1] != record.timesteps or \
+            abs(wall_seconds - record.wall_seconds) > 0.05 * (len(record.parts) + 1):
+        shown = ", ".join(f"{p['start']}-{p['end']}" for p in record.parts[:6])
+        raise TrainingRecordError(where, "parts", f"parts that add up: each starting where the one before ended, "
+                                  f"the first at init_decisions ({record.init_decisions}), the last ending at "
+                                  f"timesteps ({record.timesteps}), their wall_seconds summing to wall_seconds "
+                                  f"({record.wall_seconds:g})", f"parts {shown or 'none'} of {wall_seconds:g} s")

@@ -48,7 +48,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.utils import obs_as_tensor
 from stable_baselines3.common.vec_env import VecEnv
 
-from ..concurrency.parallel import ProcessActor, one_kernel_thread
+from ..concurrency.parallel import ProcessActor, beat, one_kernel_thread
 from ..concurrency.ray_cluster import RayActor, connect_ray
 
 #: Seconds :meth:`RolloutWorkers.close` lets a worker finish the fragment under way before it is ended.
@@ -124,6 +124,7 @@ class RolloutWorker:
         if seed is not None:
             self.env.seed(seed)
         self.obs = self.env.reset()
+        beat()
         return self.obs
 
     def set_policy(self, policy, acting: Acting) -> None:
@@ -159,6 +160,7 @@ class RolloutWorker:
                 env_actions = self.policy.unscale_action(actions) if self.policy.squash_output \
                     else np.clip(actions, action_space.low, action_space.high)
             self.obs, rewards, dones, infos = self.env.step(env_actions)
+            beat()
             steps.append((self.obs, actions, values.numpy(), log_probs.numpy(), masks, rewards, dones, infos))
         new_obs, actions, values, log_probs, masks, rewards, dones, infos = zip(*steps, strict=False)
         return Fragment(_stack_steps(new_obs), np.stack(actions), np.stack(values), np.stack(log_probs),
@@ -174,16 +176,20 @@ class RolloutWorkers(VecEnv):
     and ``on_ray``: ``RAY_ADDRESS``, else local). A ``VecEnv`` for SB3's model (spaces, ``reset``,
     ``get_attr``, ``env_method``); the decisions are played by :meth:`play`, not ``step``. ``policy_lag``
     (0 or 1): how many updates the weights a fragment is played with may be behind the learner's (see the
-    module docstring)."""
+    module docstring). ``worker_timeout``: the seconds a local worker may go without playing a decision (or
+    resetting its envs) before a call to it is an :class:`~emmi_gym.concurrency.parallel.ActorStalled` naming it
+    (stopped, or stuck in its env); a worker that dies is an
+    :class:`~emmi_gym.concurrency.parallel.ActorFailed` naming it."""
 
     def __init__(self, env_fn, n_envs: int, seed: int, *, on_ray: bool = False, ray_address: str | None = None,
-                 policy_lag: int = 0):
+                 policy_lag: int = 0, worker_timeout: float | None = None):
         if policy_lag not in (0, 1):
             raise ValueError(f"policy_lag: 0 or 1 updates, got {policy_lag!r}")
         self._ray, self._started_ray = connect_ray(ray_address) if on_ray else (None, False)
         self.workers = []
         self.closed = False
         self.policy_lag = policy_lag
+        self.worker_timeout = worker_timeout
         self._ahead_under_way = False  # the workers are playing the next fragments (policy_lag 1)
         self._ahead: list[Fragment] | None = None  # those fragments, gathered before another call
         try:
@@ -204,7 +210,7 @@ class RolloutWorkers(VecEnv):
         self._gather_ahead()
         for rank, method, *args in calls:
             self.workers[rank].submit(method, *args)
-        return [self.workers[rank].result() for rank, *_ in calls]
+        return [self.workers[rank].result(self.worker_timeout) for rank, *_ in calls]
 
     def _all(self, method: str, *args) -> list:
         return self._each([(rank, method, *args) for rank in range(self.num_envs)])
@@ -213,7 +219,7 @@ class RolloutWorkers(VecEnv):
         """Wait for the fragments played ahead (if under way) and keep them, so the workers take other calls."""
         if self._ahead_under_way:
             self._ahead_under_way = False
-            self._ahead = [worker.result() for worker in self.workers]
+            self._ahead = [worker.result(self.worker_timeout) for worker in self.workers]
 
     def reset(self):
         """Reset every env (with the seeds given to ``seed``, if any); their observations. Fragments played
@@ -232,8 +238,7 @@ class RolloutWorkers(VecEnv):
         if not self._policy_sent:
             self._all("set_policy", copy.deepcopy(policy).to("cpu"), acting)
             self._policy_sent = True
-        # a snapshot: local processes receive tensors through shared memory (torch's reductions for
-        # multiprocessing), and with a policy lag the learner's update must not write into what a worker reads
+        # a snapshot: with a policy lag the learner's update must not write into what a worker reads
         weights = {name: tensor.detach().cpu().clone() for name, tensor in policy.state_dict().items()}
         if self._ray is not None:
             weights = self._ray.put(weights)  # once into the object store, read by every actor

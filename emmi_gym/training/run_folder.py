@@ -22,10 +22,11 @@ from .config import AgentConfig, load_agent_config
 
 #: What ``emmi-gym train`` writes into a run folder (all that ``overwrite`` removes).
 RUN_FILES = ("config.yaml", "model.zip", "training.yaml", "checkpoints", "eval", "eval_ground_truth.csv", "tb")
-#: The fields of a configuration that a resumed run may change: its budget, how its envs run, its
+#: The fields of a configuration that a resumed run may change: its budget, how its envs run (and are watched), its
 #: evaluation and checkpoint schedules. Any other (algorithm, policy, hyperparameters, env id and
 #: options, seed) would make the rest of the run another run than its model's and its ``config.yaml``.
-RESUMABLE_CHANGES = ("total_timesteps", "n_envs", "vec_env", "policy_lag", "eval", "checkpoint_freq")
+RESUMABLE_CHANGES = ("total_timesteps", "n_envs", "vec_env", "policy_lag", "worker_timeout", "eval",
+                     "checkpoint_freq")
 
 
 class RunError(ValueError):
@@ -51,9 +52,12 @@ def folder_entries(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
 
 
-def check_new_run_folder(folder: Path, overwrite: bool, *, resumable: bool = True) -> None:
+def check_new_run_folder(folder: Path, overwrite: bool, *, resumable: bool = True, inputs=None,
+                         files=RUN_FILES) -> None:
     """Refuse a new run into ``folder`` if it holds anything, unless ``overwrite`` (``resumable``: the
-    message offers ``--resume``)."""
+    message offers ``--resume``); with ``overwrite``, refuse it too if one of its ``inputs`` (``{option:
+    path or paths}``, None where not given) lies among the ``files`` that overwriting removes
+    (:func:`clear_run_folder`): it would be gone before it is read."""
     entries = folder_entries(folder)
     if entries and not overwrite:
         shown = ", ".join(entries[:6]) + (", ..." if len(entries) > 6 else "")
@@ -62,6 +66,21 @@ def check_new_run_folder(folder: Path, overwrite: bool, *, resumable: bool = Tru
             f"{folder} is not empty (it holds {shown}): a new run would overwrite what is there; "
             f"{resume}replace it with --overwrite, or give another --out"
         )
+    if entries:
+        check_inputs_kept(folder, inputs or {}, files)
+
+
+def check_inputs_kept(folder: Path, inputs: dict, files=RUN_FILES) -> None:
+    """Refuse an input (``{option: path or paths}``) that lies among the ``files`` of ``folder`` that
+    ``--overwrite`` removes (links and ``..`` resolved): the run would remove what it was to read."""
+    removed = [(Path(folder) / name).resolve() for name in files]
+    for option, paths in inputs.items():
+        for path in [] if paths is None else [paths] if isinstance(paths, (str, Path)) else paths:
+            if any(Path(path).resolve().is_relative_to(gone) for gone in removed):
+                raise RunError(
+                    f"{option} {path} is a file of the run in {folder}, which --overwrite would remove before it "
+                    f"is read: copy it out of {folder} first, or give another --out"
+                )
 
 
 def clear_run_folder(folder: Path, names=RUN_FILES) -> None:

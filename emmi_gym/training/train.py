@@ -35,7 +35,8 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-from ..concurrency.parallel import one_kernel_thread
+from ..concurrency.interrupts import RunStopped
+from ..concurrency.parallel import ActorFailed, leave_terminal_signals, one_kernel_thread
 from ..experiments.loop_order import LoopOrderInfo
 from ..inputs.paths import write_atomically, write_text_atomically
 from .callbacks import NonFiniteError, OnRunSchedule, StopOnNonFinite, check_weights, eval_callback_class
@@ -59,7 +60,7 @@ from .run_folder import (
 )
 from .run_record import TRAINING_RECORD, earlier_parts, record_training
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
-from .warm_start import check_init_from
+from .warm_start import check_init_from, check_model_fits
 
 _CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
 OFF_POLICY = ("DQN", "SAC")
@@ -102,12 +103,12 @@ def set_torch_threads(threads: int | None = None) -> int:
 def make_agent_env(env_id: str, kwargs: dict, render_mode: str | None = None, *, vec_worker: bool = False) -> gym.Env:
     """``gym.make`` of an emmi_gym id, wrapped to report the episode's loop order (:class:`LoopOrderInfo`);
     importable by reference, so spawned workers can build it. In a ``vec_worker`` (a subprocess of
-    vectorised envs) Ctrl-C is ignored (the main process handles it and closes the workers) and the
-    kernels run on one thread (the processes are the parallelism)."""
+    vectorised envs) Ctrl-C is ignored and the terminal's process group left (the main process handles Ctrl-C
+    and SIGTERM and closes the workers) and the kernels run on one thread (the processes are the parallelism)."""
     import emmi_gym  # noqa: F401  (registers the ids in a fresh worker process)
 
     if vec_worker:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        leave_terminal_signals()
         one_kernel_thread()
     return LoopOrderInfo(gym.make(env_id, render_mode=render_mode, **kwargs))
 
@@ -127,7 +128,8 @@ def make_vec_env(config: AgentConfig, n_envs: int, seed: int, vec_env: str, *, e
 
         return RolloutWorkers(partial(make_agent_env, config.env_id, kwargs, vec_worker=True), n_envs, seed,
                               on_ray=vec_env == "ray_workers", ray_address=ray_address,
-                              policy_lag=0 if evaluation else config.policy_lag)
+                              policy_lag=0 if evaluation else config.policy_lag,
+                              worker_timeout=config.worker_timeout)
     if vec_env == "ray":
         from .ray_vec_env import RayVecEnv
 
@@ -241,24 +243,38 @@ def is_whole_zip(path: Path) -> bool:
         return False
 
 
-def latest_checkpoint(run_dir: Path) -> Path | None:
+def latest_checkpoint(run_dir: Path, algorithm: str | None = None) -> Path | None:
     """The checkpoint of a run folder to continue from: of the final ``model.zip`` and the checkpoints that
-    are whole archives (one cut short by a kill is skipped, with a warning), the one with the most decisions,
-    ``model.zip`` on a tie (a run extended to a larger budget and stopped holds checkpoints past its old
-    ``model.zip``)."""
-    found = [(decisions, False, path) for decisions, path in checkpoints(run_dir) if is_whole_checkpoint(path)]
+    are whole archives (one cut short by a kill is skipped, with a warning; with ``algorithm``, so is one that
+    is not a model of it that loads, :func:`~emmi_gym.training.model_files.check_model_file`), the one with the
+    most decisions, ``model.zip`` on a tie (a run extended to a larger budget and stopped holds checkpoints
+    past its old ``model.zip``)."""
+    found = [(decisions, False, path) for decisions, path in checkpoints(run_dir)]
     final = Path(run_dir) / "model.zip"
-    if final.exists() and is_whole_zip(final):
+    if final.exists() and is_whole_checkpoint(final, algorithm):
         found.append((saved_decisions(final), True, final))
-    return max(found, key=lambda candidate: candidate[:2])[2] if found else None
+    return next((path for *_, path in sorted(found, reverse=True) if path == final or
+                 is_whole_checkpoint(path, algorithm)), None)
 
 
-def is_whole_checkpoint(path: Path) -> bool:
-    """Whether a checkpoint is a whole archive; a damaged one (cut short by a kill) is skipped with a warning."""
-    if is_whole_zip(path):
-        return True
-    warnings.warn(f"skipping the damaged checkpoint {path} (not a whole zip archive)", stacklevel=3)
-    return False
+def is_whole_checkpoint(path: Path, algorithm: str | None = None) -> bool:
+    """Whether a checkpoint is a whole archive (with ``algorithm``: a model of it, its members undamaged, as
+    :func:`~emmi_gym.training.model_files.check_model_file` checks); a damaged one (cut short by a kill) is
+    skipped with a warning."""
+    from .model_files import ModelFileError, check_model_file
+
+    if not is_whole_zip(path):
+        warnings.warn(f"skipping the damaged checkpoint {path} (not a whole zip archive)", stacklevel=3)
+        return False
+    try:
+        if algorithm is None:
+            saved_decisions(path)
+        else:
+            check_model_file(path, algorithm)
+    except ModelFileError as exc:
+        warnings.warn(f"skipping the damaged checkpoint {exc}", stacklevel=3)
+        return False
+    return True
 
 
 def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
@@ -369,7 +385,7 @@ def plan_run(config: AgentConfig, folder, *, resume: bool = False, overwrite: bo
         raise RunError("--init-from starts a new run from a model; --resume continues the run in the folder "
                        "(which remembers the model it started from): give one of them")
     if not resume:
-        check_new_run_folder(folder, overwrite)
+        check_new_run_folder(folder, overwrite, inputs={"--init-from": init_from})
         if init_from is None:
             return RunStart(None, overwrite=overwrite)
         start = check_init_from(init_from, config, allow_no_training)
@@ -377,9 +393,15 @@ def plan_run(config: AgentConfig, folder, *, resume: bool = False, overwrite: bo
     check_resumable(config, folder)
     record = training_record(folder) or {}
     init_path = Path(record["init_from"]) if record.get("init_from") is not None else None
-    checkpoint = latest_checkpoint(folder)
+    checkpoint = latest_checkpoint(folder, config.algorithm)
     if checkpoint is None and init_path is not None:  # stopped before its first checkpoint: from its start again
         checkpoint = check_init_from(init_path, config, allow_no_training=True).path
+    elif checkpoint is not None:
+        decisions = check_model_fits(checkpoint, config, f"--resume: {checkpoint}")
+        if decisions > config.total_timesteps:
+            raise RunError(f"--resume: the run in {folder} holds {decisions} decisions ({checkpoint}), more than "
+                           f"total_timesteps {config.total_timesteps}: a run is not cut back. Give --timesteps "
+                           f"{decisions} or more, or start a new run with another --out")
     return RunStart(checkpoint, init_path, int(record.get("init_decisions", 0)), record)
 
 
@@ -447,19 +469,13 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
             check_weights(model, "at the end")
             with interrupts_deferred():
                 model_path = write_atomically(run_dir / "model.zip", partial(_save, model, record))
-        except KeyboardInterrupt:  # Ctrl-C or kill -INT: keep what was learnt, as a checkpoint --resume continues from
+        except KeyboardInterrupt:  # Ctrl-C, kill -INT or SIGTERM: keep what was learnt, as a checkpoint to resume
             interrupted = True
-            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the save short
-            try:
-                check_weights(model, "at the interruption")
-                checkpoint_dir.mkdir(parents=True, exist_ok=True)
-                if config.algorithm in OFF_POLICY:
-                    write_atomically(checkpoint_dir / f"model_replay_buffer_{model.num_timesteps}_steps.pkl",
-                                     model.save_replay_buffer)
-                model_path = write_atomically(checkpoint_dir / f"model_{model.num_timesteps}_steps.zip",
-                                              partial(_save, model, record))
-            finally:
-                signal.signal(signal.SIGINT, previous)
+            model_path = _save_checkpoint(model, config, checkpoint_dir, record, "at the interruption")
+        except ActorFailed as exc:  # a worker died or made no progress: keep what was learnt, say how to go on
+            saved = _save_checkpoint(model, config, checkpoint_dir, record, "when a worker failed")
+            raise RunStopped(f"{exc}. The run stopped and saved {saved}; continue it with: emmi-gym train "
+                             f"{config.source} --resume --out {run_dir}") from None
         except NonFiniteError as exc:
             newest = latest_checkpoint(run_dir)
             raise NonFiniteError(f"{run_dir}: {exc}. Nothing of it was saved; the newest checkpoint, of finite "
@@ -469,6 +485,24 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
             if eval_env is not None:
                 close_vec_env(eval_env)
     return TrainResult(run_dir, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
+
+
+def _save_checkpoint(model, config: AgentConfig, checkpoint_dir: Path, record, when: str) -> Path:
+    """Save ``model`` as a checkpoint (with its replay buffer, off-policy) that ``--resume`` continues from, once its
+    weights are checked finite (``when`` says when, for the error), and record the run; a second Ctrl-C must not
+    cut the save short. Its path."""
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _handles_ctrl_c() else None
+    try:
+        check_weights(model, when)
+        checkpoint_dir.mkdir(parents=True, exist_ok=True)
+        if config.algorithm in OFF_POLICY:
+            write_atomically(checkpoint_dir / f"model_replay_buffer_{model.num_timesteps}_steps.pkl",
+                             model.save_replay_buffer)
+        return write_atomically(checkpoint_dir / f"model_{model.num_timesteps}_steps.zip",
+                                partial(_save, model, record))
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 def _save(model, record, path: Path) -> None:

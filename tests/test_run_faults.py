@@ -1,0 +1,307 @@
+"""Runs never lost under faults and mistakes: an overwrite never removes its own input, the benchmark never
+reports a partial agent nor relabels a budget, a resumed run is checked against its model before anything is
+written, a rollout worker that stops or dies is a one-line error naming it with the run saved, SIGTERM stops
+a run as Ctrl-C does, and readers stay within their memory bounds."""
+
+import multiprocessing as mp
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+import zipfile
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import test_run_safety
+import yaml
+from test_imitation import CONFIG as CLONE_CONFIG
+from test_rollout_workers import MASKED, agent
+from test_run_safety import PPO_SMALL, cli
+from test_training import config_dict, interrupt_training_at
+
+from emmi_gym.concurrency.interrupts import RunStopped
+from emmi_gym.concurrency.parallel import ActorStalled
+from emmi_gym.training.config import parse_agent_config
+from emmi_gym.training.train import latest_checkpoint, make_vec_env, model_of, train
+
+finished, run = test_run_safety.finished, test_run_safety.run  # fixtures: a finished run, and a copy of it
+
+
+def files_of(folder) -> dict:
+    return {path: path.read_bytes() for path in sorted(folder.rglob("*")) if path.is_file()}
+
+
+# ---------------------------------------------------------------- overwrite and its inputs
+def test_overwrite_refuses_an_input_among_the_files_it_would_remove(run, tmp_path, capsys):
+    folder, config = run
+    before = files_of(folder)
+    for model in (folder / "model.zip", folder / "checkpoints" / "model_16_steps.zip"):
+        code, _, err = cli(["train", config, "--init-from", model, "--out", folder, "--overwrite",
+                            "--timesteps", "48", "--quiet"], capsys)
+        assert code == 2 and f"--init-from {model} is a file of the run in {folder}" in err
+        assert files_of(folder) == before
+    clone = tmp_path / "clone"
+    clone.mkdir()
+    (clone / "demonstrations.npz").write_bytes(b"the demonstrations")
+    (tmp_path / "clone.yaml").write_text(yaml.safe_dump(CLONE_CONFIG))
+    code, _, err = cli(["clone", tmp_path / "clone.yaml", "--demos", clone / "demonstrations.npz", "--out", clone,
+                        "--overwrite", "--quiet"], capsys)
+    assert code == 2 and "--demos" in err and "--overwrite would remove" in err
+    assert (clone / "demonstrations.npz").read_bytes() == b"the demonstrations"
+
+
+# ---------------------------------------------------------------- resuming
+def test_resume_below_what_is_trained_is_refused_and_the_folder_kept(run, capsys):
+    folder, config = run
+    before = files_of(folder)
+    code, _, err = cli(["train", config, "--resume", "--timesteps", "16", "--out", folder, "--quiet"], capsys)
+    assert code == 2 and "holds 32 decisions" in err and "--timesteps 32 or more" in err
+    assert files_of(folder) == before
+
+
+def test_resume_skips_a_damaged_model_for_the_newest_whole_checkpoint(run, capsys):
+    folder, config = run
+    with zipfile.ZipFile(folder / "model.zip") as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    with zipfile.ZipFile(folder / "model.zip", "w") as archive:  # a whole zip whose weights are not torch's
+        for name, data in members.items():
+            archive.writestr(name, b"garbage" if name == "policy.pth" else data)
+    (folder / "checkpoints" / "model_32_steps.zip").unlink()
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint .*model.zip"):
+        code, out, _ = cli(["train", config, "--resume", "--timesteps", "48", "--out", folder, "--quiet"], capsys)
+    assert code == 0 and f"continuing from {folder / 'checkpoints' / 'model_16_steps.zip'} (16 decisions)" in out
+
+
+def test_a_configuration_that_does_not_match_the_model_is_refused_before_anything_is_written(run, capsys):
+    folder, config = run
+    edited = yaml.safe_load((folder / "config.yaml").read_text())
+    edited["hyperparameters"]["policy_kwargs"] = {"net_arch": [7]}  # hand-edited, in the run and the file given
+    (folder / "config.yaml").write_text(yaml.safe_dump(edited))
+    before = files_of(folder)
+    code, _, err = cli(["train", folder / "config.yaml", "--resume", "--timesteps", "48", "--out", folder,
+                        "--quiet"], capsys)
+    assert code == 2 and "the model's network is policy_kwargs" in err and "'net_arch': [7]" in err
+    assert files_of(folder) == before
+
+
+def test_a_training_record_whose_parts_do_not_add_up_is_refused(run, capsys):
+    folder, config = run
+    record = yaml.safe_load((folder / "training.yaml").read_text())
+    record["parts"] = [dict(record["parts"][0], end=8)]  # 0-8, but 32 decisions trained
+    (folder / "training.yaml").write_text(yaml.safe_dump(record))
+    before = files_of(folder)
+    code, _, err = cli(["train", config, "--resume", "--timesteps", "48", "--out", folder, "--quiet"], capsys)
+    assert code == 2 and "training.yaml: field 'parts': expected parts that add up" in err
+    assert files_of(folder) == before
+
+
+# ---------------------------------------------------------------- --init-from
+def test_init_from_another_policy_class_is_refused_and_a_model_without_its_configuration_warned(tmp_path, capsys):
+    scoring = parse_agent_config(dict(CLONE_CONFIG, total_timesteps=16))  # TargetScoringPolicy
+    plain = replace(scoring, policy="MultiInputPolicy")
+    env = make_vec_env(plain, 1, 0, "dummy")
+    model_of(plain, env).save(tmp_path / "plain.zip")  # saved without a config.yaml beside it
+    env.close()
+    (tmp_path / "scoring.yaml").write_text(yaml.safe_dump(dict(CLONE_CONFIG, total_timesteps=16)))
+    with pytest.warns(UserWarning, match="no config.yaml beside it"):
+        code, _, err = cli(["train", tmp_path / "scoring.yaml", "--init-from", tmp_path / "plain.zip", "--out",
+                            tmp_path / "run", "--quiet"], capsys)
+    assert code == 2 and "a model of the policy MaskableMultiInputActorCriticPolicy" in err
+    assert "names policy TargetScoringPolicy" in err and not files_of(tmp_path / "run")
+
+
+# ---------------------------------------------------------------- the benchmark
+def test_the_benchmark_checks_every_argument_before_the_first_agent(tmp_path):
+    from emmi_gym.training.benchmark import make_jobs
+
+    config = parse_agent_config(dict(CLONE_CONFIG, policy="MultiInputPolicy"))
+    with pytest.raises(ValueError, match="--rewards: emmi given more than once"):
+        make_jobs(config, ["emmi", "emmi"], range(1), 8, 1, [], tmp_path)
+    with pytest.raises(ValueError, match=r"--baselines: unknown \['bogus'\]"):
+        make_jobs(config, ["emmi"], range(1), 8, 1, ["frontier", "bogus"], tmp_path)
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_benchmark_refuses_to_report_a_larger_run_under_a_smaller_budget(tmp_path):
+    from emmi_gym.training.benchmark import make_jobs, run_benchmark
+    from emmi_gym.training.run_folder import RunError
+    from emmi_gym.training.train import write_run_config
+
+    config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))
+    job = make_jobs(config, ["emmi"], range(1), 32, 1, [], tmp_path)[0]
+    write_run_config(job.config, job.run_dir)  # a run of this benchmark to 32 decisions
+    before = files_of(tmp_path)
+    with pytest.raises(RunError, match=r"emmi_seed0: a run of this benchmark to a larger budget than --timesteps 16"):
+        run_benchmark(config, ["emmi"], range(1), 16, 1, [], tmp_path, workers=1, progress=False)
+    assert files_of(tmp_path) == before
+
+
+@pytest.mark.slow
+def test_an_interrupted_benchmark_exits_130_and_reports_nothing(tmp_path, monkeypatch, capsys):
+    (tmp_path / "agent.yaml").write_text(yaml.safe_dump(config_dict("PPO", hyper=PPO_SMALL, timesteps=48,
+                                                                    checkpoint_freq=16)))
+    interrupt_training_at(monkeypatch, 24)
+    code, _, err = cli(["benchmark", "--config", tmp_path / "agent.yaml", "--rewards", "emmi", "--seeds", "1",
+                        "--episodes", "1", "--baselines", "--workers", "1", "--out", tmp_path / "bench",
+                        "--quiet"], capsys)
+    assert code == 130 and "interrupted: the agents stopped keep their checkpoints" in err
+    assert "Traceback" not in err and not (tmp_path / "bench" / "benchmark_summary.md").exists()
+    assert latest_checkpoint(tmp_path / "bench" / "runs" / "emmi_seed0") is not None
+
+
+def test_ctrl_c_in_a_pool_stops_every_job_without_a_traceback(tmp_path):
+    script = ("import time\nfrom emmi_gym.concurrency.parallel import run_in_processes\n"
+              "try:\n    run_in_processes(time.sleep, [60] * 6, workers=2, progress=False)\n"
+              "except KeyboardInterrupt:\n    print('stopped', flush=True)\n")
+    process = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    time.sleep(5)  # the pool's workers started, each in a job
+    started = time.monotonic()
+    os.kill(process.pid, signal.SIGINT)
+    out, err = process.communicate(timeout=30)
+    assert out.strip() == "stopped" and "Traceback" not in err and time.monotonic() - started < 20
+
+
+# ---------------------------------------------------------------- rollout workers under faults
+def _worker_processes(name: str) -> list:
+    return [child for child in mp.active_children() if child.name == name]
+
+
+def _fault_when_checkpointed(folder, fault):
+    """A thread that applies ``fault(process of rollout worker 1)`` once ``folder`` holds a checkpoint."""
+
+    def wait_and_fault():
+        deadline = time.monotonic() + 120
+        while not list((folder / "checkpoints").glob("model_*_steps.zip")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        fault(_worker_processes("rollout worker 1")[0])
+
+    thread = threading.Thread(target=wait_and_fault, daemon=True)
+    thread.start()
+    return thread
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["SIGSTOP", "SIGKILL"])
+def test_a_worker_that_stops_or_dies_stops_the_run_naming_it_with_a_checkpoint_to_resume(tmp_path, fault):
+    from sb3_contrib import MaskablePPO
+
+    data = agent(MASKED, total_timesteps=10**6, checkpoint_freq=12, worker_timeout=10)
+    _fault_when_checkpointed(tmp_path, lambda process: os.kill(process.pid, getattr(signal, fault)))
+    started = time.monotonic()
+    with pytest.raises(RunStopped) as stopped:
+        train(parse_agent_config(data), tmp_path, progress=False)
+    message = str(stopped.value)
+    assert "rollout worker 1" in message and "--resume" in message and "\n" not in message
+    assert ("made no progress for 10 s" if fault == "SIGSTOP" else "the process has stopped") in message
+    assert time.monotonic() - started < 100  # generous: the bound is the heartbeat's, a few seconds
+    saved = latest_checkpoint(tmp_path)
+    assert str(saved) in message and MaskablePPO.load(saved).num_timesteps >= 12
+    assert not _worker_processes("rollout worker 1")  # stopped or not, every worker was ended
+
+
+def test_a_stalled_worker_is_named_within_its_timeout():
+    data = parse_agent_config(agent(MASKED, worker_timeout=2))
+    workers = make_vec_env(data, 2, 0, "workers")
+    try:
+        workers.reset()
+        os.kill(workers.workers[0].process.pid, signal.SIGSTOP)
+        started = time.monotonic()
+        with pytest.raises(ActorStalled, match=r"rollout worker 0 \(process \d+\) has made no progress for 2 s"):
+            workers.reset()
+        assert 2 <= time.monotonic() - started < 30
+    finally:
+        workers.close()
+
+
+@pytest.mark.slow
+def test_sigterm_saves_a_checkpoint_exits_143_and_the_run_resumes_from_it(tmp_path):
+    config = tmp_path / "agent.yaml"
+    config.write_text(yaml.safe_dump(agent(MASKED, total_timesteps=10**6, checkpoint_freq=12, policy_lag=1)))
+    run_dir = tmp_path / "run"
+    process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", config, "--out", run_dir, "--quiet"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 180
+    while not list((run_dir / "checkpoints").glob("model_*_steps.zip")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    os.killpg(process.pid, signal.SIGTERM)  # as timeout(1) does: the whole group
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 143 and "Traceback" not in err and "Error" not in err
+    saved = latest_checkpoint(run_dir)
+    assert f"saved {saved}" in out
+    stopped_at = int(saved.stem.split("_")[1])
+    resumed = train(parse_agent_config(agent(MASKED, total_timesteps=stopped_at + 12, checkpoint_freq=12,
+                                             policy_lag=1)), run_dir, resume=True, progress=False)
+    assert resumed.timesteps >= stopped_at + 12
+    record = yaml.safe_load((run_dir / "training.yaml").read_text())
+    assert record["timesteps"] == resumed.timesteps and record["parts"][0]["end"] == stopped_at
+
+
+def test_ctrl_c_before_training_starts_is_one_line(tmp_path, monkeypatch, capsys):
+    import emmi_gym.training.config as configs
+
+    def interrupted(path):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(configs, "load_agent_config", interrupted)
+    code, _, err = cli(["train", tmp_path / "agent.yaml", "--out", tmp_path / "run"], capsys)
+    assert code == 130 and err.strip() == "emmi-gym train: interrupted"
+
+
+# ---------------------------------------------------------------- the smaller items
+def test_a_checkpoint_is_scored_at_its_models_count_and_nan_weights_name_the_file(finished, tmp_path):
+    import torch
+
+    from emmi_gym.training.checkpoint_scores import whole_checkpoints
+    from emmi_gym.training.model_files import ModelFileError, load_model_file
+
+    folder = tmp_path / "run"
+    shutil.copytree(finished[0], folder)
+    (folder / "checkpoints" / "model_16_steps.zip").rename(folder / "checkpoints" / f"model_{10**23}_steps.zip")
+    assert [decisions for decisions, _ in whole_checkpoints(folder)] == [16, 32]
+    model = load_model_file(folder / "model.zip", "PPO")
+    with torch.no_grad():
+        next(model.policy.parameters()).fill_(float("nan"))
+    model.save(tmp_path / "nan.zip")
+    with pytest.raises(ModelFileError, match=r"nan\.zip: expected a model whose weights are all finite"):
+        load_model_file(tmp_path / "nan.zip", "PPO")
+
+
+def test_a_curve_with_negative_timesteps_and_a_world_in_options_are_refused(tmp_path, capsys):
+    from emmi_gym.inputs.csv_files import CsvFileError
+    from emmi_gym.training.learning_curves import read_curve
+
+    (tmp_path / "curve.csv").write_text("timesteps,oracle_accuracy,ate,sim_steps,coverage\n-8,0.5,0.2,100,0.4\n")
+    with pytest.raises(CsvFileError, match=r"curve\.csv: field 'timesteps': expected a number of decisions \(0 or"):
+        read_curve(tmp_path / "curve.csv")
+    code, _, err = cli(["compare-policies", "--options", '{"world": "x.yaml"}', "--out", tmp_path / "cmp"], capsys)
+    assert code == 2 and "--options: a world ('x.yaml') is --worlds's to give" in err
+
+
+def test_readers_refuse_what_would_take_more_than_their_bound(tmp_path):
+    from emmi_gym.inputs.csv_files import MAX_CSV_BYTES, CsvFileError, read_csv_file
+    from emmi_gym.training.demonstrations import MAX_DEMONSTRATION_BYTES, Demonstrations, DemonstrationsError
+
+    (tmp_path / "big.csv").write_bytes(b"a\n" + b"1\n" * (MAX_CSV_BYTES // 2))
+    with pytest.raises(CsvFileError, match="big.csv"):
+        read_csv_file(tmp_path / "big.csv", "learning curve")
+    with zipfile.ZipFile(tmp_path / "big.npz", "w", zipfile.ZIP_DEFLATED) as archive:
+        with archive.open("obs_map.npy", "w", force_zip64=True) as member:
+            header = np.lib.format.header_data_from_array_1_0(np.zeros(0, np.uint8))
+            np.lib.format.write_array_header_1_0(member, dict(header, shape=(MAX_DEMONSTRATION_BYTES + 1,)))
+            for _ in range(MAX_DEMONSTRATION_BYTES // 2**24 + 1):
+                member.write(bytes(2**24))
+    with pytest.raises(DemonstrationsError, match=r"big\.npz: expected a demonstrations file of at most 0.5 GiB"):
+        Demonstrations.load(tmp_path / "big.npz")
+
+
+def test_a_ray_address_that_is_not_private_is_named():
+    from emmi_gym.concurrency.ray_cluster import public_host
+
+    assert [public_host(a) for a in ("127.0.0.1:6379", "10.1.2.3:6379", "ray://192.168.0.9:10001",
+                                     "localhost:6379")] == [None] * 4
+    assert public_host("8.8.8.8:6379") == "8.8.8.8" and public_host("ray://1.1.1.1:10001") == "1.1.1.1"
