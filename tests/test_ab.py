@@ -1,14 +1,14 @@
 """The paper's A/B experiment (Fig. 6) on a small configuration, and the demo command.
 
-The full run (`emmi-gym ab --seeds 20`, in the README) is reproduced here on its first
+The full run (`emmi-gym ab --seeds 20` on LoopCorridor-v1) is reproduced here on its first
 eight seeds (same settings, about 40 s on two cores): EMMI must rise after closing the
-loop and not after entering the new area (the full run: A - B +0.072 [+0.040, +0.104], A
-above B on 18 of 20; on eight seeds the paired interval is too wide to assert, since
+loop and not after entering the new area (the full run: A - B +0.079 [+0.040, +0.117], A
+higher on 17 of 20; on eight seeds the paired interval is too wide to assert, since
 entering the new area raises EMMI too on some seeds, so A must be above B on at least 6
-of 8: fewer has probability 4% where the full run's 90% holds); the pose entropy must fall
-under A and not under B; the joint entropy must not prefer A. Whether the new area is
+of 8: fewer has probability 10% at the full run's rate of 85%; the seeds are fixed); the
+pose entropy must fall under A and not under B; the joint entropy must not prefer A. Whether the new area is
 mapped better when A came first is not asserted: the full run finds no clear difference
-on this world (-0.009 [-0.032, +0.015], docs/ab.md).
+on this world (+0.016 [-0.013, +0.045], docs/results/scripted_policies.md).
 """
 
 import csv

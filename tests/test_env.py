@@ -655,6 +655,29 @@ def test_maps_beyond_the_memory_bound_are_refused_with_what_they_would_take():
         set_kernel_threads(threads)
 
 
+def test_a_generated_world_whose_planning_would_pass_the_bound_is_refused_before_its_grids():
+    """Counted with a replan over the whole world (the filter's maps alone fit): refused at reset, naming what
+    it would take, before any grid is allocated (it used to fail inside the planner's search)."""
+    import tracemalloc
+
+    from emmi_gym.slam.occupancy import MapTooLarge
+
+    env = gym.make("emmi_gym/LoopOrder-v1", particles=55,
+                   generator={"loop_width": 200, "loop_height": 200, "new_area_length": 200})
+    tracemalloc.start()
+    try:
+        with pytest.raises(MapTooLarge, match=r"would take 4\.\d GiB in an environment with 55 particles \(\d+ bytes "
+                                              r"per cell: the filter's maps, the oracle's map, the observation, "
+                                              r"planning\), above the bound of 4 GiB"):
+            env.reset(seed=0)
+        # refused before the grids (the particles' maps alone would take over 2 GiB); what was taken is the
+        # world's own checks (its routes against its walls: 151 MB)
+        assert tracemalloc.get_traced_memory()[1] < 512 * 2**20
+    finally:
+        tracemalloc.stop()
+        env.close()
+
+
 def test_map_accuracy_is_defined_when_nothing_is_known_to_both():
     from emmi_gym.scoring.scores import map_accuracy
 

@@ -2,7 +2,7 @@
 
 The sweep and the A/B runs here are tiny (two seeds, few particles, few decisions): they check
 what the commands write and that the options reach the env, not what the experiment finds
-(docs/ab.md has the figures).
+(docs/results/order_matters.md has the figures).
 """
 
 import csv
