@@ -305,3 +305,30 @@ def test_a_ray_address_that_is_not_private_is_named():
     assert [public_host(a) for a in ("127.0.0.1:6379", "10.1.2.3:6379", "ray://192.168.0.9:10001",
                                      "localhost:6379")] == [None] * 4
     assert public_host("8.8.8.8:6379") == "8.8.8.8" and public_host("ray://1.1.1.1:10001") == "1.1.1.1"
+
+
+@pytest.mark.slow
+def test_a_ray_actor_that_overruns_its_call_is_named_within_the_timeout():
+    """Ray gives no progress within a call: the worker timeout bounds the whole call (a fragment)."""
+    from emmi_gym.concurrency.ray_cluster import RayActor, connect_ray
+
+    class Sleeper:  # defined here, so that Ray sends it to the actor by value
+        def sleep(self, seconds: float) -> float:
+            time.sleep(seconds)
+            return seconds
+
+    ray, started = connect_ray("local")
+    try:
+        actor = RayActor(ray, "rollout worker 0", Sleeper)
+        actor.submit("sleep", 0.1)
+        assert actor.result(heartbeat_timeout=30.0) == 0.1
+        actor.submit("sleep", 60.0)
+        began = time.monotonic()
+        with pytest.raises(ActorStalled, match=r"rollout worker 0 \(a Ray actor\) has not ended its call within 2 s"):
+            actor.result(heartbeat_timeout=2.0)
+        assert time.monotonic() - began < 30.0
+        actor.close(0.0)
+    finally:
+        if started:
+            ray.shutdown()
+

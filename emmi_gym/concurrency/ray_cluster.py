@@ -65,11 +65,15 @@ class RayActor:
 
     def result(self, heartbeat_timeout: float | None = None):
         """What the submitted call returned; what the actor raised, or its end, as an
-        :class:`~emmi_gym.concurrency.parallel.ActorFailed`. Ray watches its actors' processes itself; no
-        heartbeat is kept (``heartbeat_timeout`` is :class:`~emmi_gym.concurrency.parallel.ProcessActor`'s)."""
-        from .parallel import ActorFailed
+        :class:`~emmi_gym.concurrency.parallel.ActorFailed`. Ray watches its actors' processes itself but gives
+        no sign of progress within a call, so ``heartbeat_timeout`` bounds the whole call here (a
+        :class:`~emmi_gym.concurrency.parallel.ActorStalled` if it has not ended by then)."""
+        from .parallel import ActorFailed, ActorStalled
 
         reply, self._reply = self._reply, None
+        if heartbeat_timeout is not None and not self._ray.wait([reply], timeout=heartbeat_timeout)[0]:
+            raise ActorStalled(f"{self.name} (a Ray actor) has not ended its call within {heartbeat_timeout:g} s: "
+                               "it was stopped, or is stuck in its env")
         try:
             return self._ray.get(reply)
         except self._ray.exceptions.RayError as error:

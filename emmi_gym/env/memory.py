@@ -44,7 +44,7 @@ def check_env_memory(geometry: GridGeometry, particles: int, world: str) -> None
         side = math.sqrt(most) * geometry.resolution
         raise MapTooLarge(f"world {world}: {geometry.cols} x {geometry.rows} cells of {geometry.resolution:g} m "
                           f"would take {needed / 2**30:.1f} GiB in an environment with {particles} particles "
-                          f"({per_cell} bytes per cell: the filter's maps, the oracle's map, the observation, planning), above "
-                          f"the bound of {MAX_MAP_BYTES / 2**30:.0f} GiB; at most {most:,} cells (a square of "
-                          f"{side:.0f} m at {geometry.resolution:g} m): use coarser cells (resolution), fewer "
-                          "particles or a smaller world")
+                          f"({per_cell} bytes per cell: the filter's maps, the oracle's map, the observation, "
+                          f"planning), above the bound of {MAX_MAP_BYTES / 2**30:.0f} GiB; at most {most:,} cells "
+                          f"(a square of {side:.0f} m at {geometry.resolution:g} m): use coarser cells (resolution), "
+                          "fewer particles or a smaller world")

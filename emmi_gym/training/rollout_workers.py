@@ -177,8 +177,9 @@ class RolloutWorkers(VecEnv):
     ``get_attr``, ``env_method``); the decisions are played by :meth:`play`, not ``step``. ``policy_lag``
     (0 or 1): how many updates the weights a fragment is played with may be behind the learner's (see the
     module docstring). ``worker_timeout``: the seconds a local worker may go without playing a decision (or
-    resetting its envs) before a call to it is an :class:`~emmi_gym.concurrency.parallel.ActorStalled` naming it
-    (stopped, or stuck in its env); a worker that dies is an
+    resetting its envs), and a Ray actor may take over one call (a fragment; Ray gives no progress within a
+    call), before a call to it is an :class:`~emmi_gym.concurrency.parallel.ActorStalled` naming it (stopped,
+    or stuck in its env); a worker that dies is an
     :class:`~emmi_gym.concurrency.parallel.ActorFailed` naming it."""
 
     def __init__(self, env_fn, n_envs: int, seed: int, *, on_ray: bool = False, ray_address: str | None = None,
