@@ -44,8 +44,8 @@ def run_in_processes(function, jobs: Iterable, *, total: int | None = None, work
         started = context.SimpleQueue()  # each worker's pid, so that a Ctrl-C can be passed on to it
         with ProcessPoolExecutor(workers, mp_context=context, initializer=_pool_worker,
                                  initargs=(started,)) as pool:
+            running: set = set()
             try:
-                running: set = set()
                 for job in jobs:
                     if len(running) >= 2 * workers:  # a job queued behind each running one keeps every worker busy
                         finished, running = wait(running, return_when=FIRST_COMPLETED)
@@ -56,7 +56,7 @@ def run_in_processes(function, jobs: Iterable, *, total: int | None = None, work
                     results.append(future.result())
                     bar.update()
             except KeyboardInterrupt:
-                _stop_pool(pool, started)
+                _stop_pool(pool, started, running)
                 raise
     return results
 
@@ -101,18 +101,21 @@ def _pool_job(function, job):
         _pool_state["job"] = False
 
 
-def _stop_pool(pool: ProcessPoolExecutor, started) -> None:
-    """After a Ctrl-C in this process: pass it on to each worker that ``started`` says was started (their jobs
-    stop as they would here, a training run saving a checkpoint), cancel the jobs not started and wait for the
-    workers to end; a second Ctrl-C meanwhile is ignored."""
+def _stop_pool(pool: ProcessPoolExecutor, started, running: set) -> None:
+    """After a Ctrl-C in this process: pass it on to each worker that ``started`` says was started, also to one
+    that starts meanwhile (their jobs stop as they would here, a training run saving a checkpoint), cancel the
+    jobs not started and wait for the ``running`` ones to end; a second Ctrl-C meanwhile is ignored."""
     handlers = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)} \
         if threading.current_thread() is threading.main_thread() else {}
     try:
-        while not started.empty():
-            try:
-                os.kill(started.get(), signal.SIGINT)
-            except ProcessLookupError:
-                pass
+        while True:  # a worker that stops its pool (its flag set) starts no job queued behind
+            while not started.empty():
+                try:
+                    os.kill(started.get(), signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+            if not wait(running, timeout=0.5).not_done:
+                break
         pool.shutdown(wait=True, cancel_futures=True)
     finally:
         for sig, handler in handlers.items():
