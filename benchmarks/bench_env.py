@@ -49,10 +49,10 @@ import numpy as np
 from _timing import timed
 
 import emmi_gym
+from emmi_gym.commands import arguments
 from emmi_gym.concurrency.threads import set_kernel_threads
 from emmi_gym.env import ENV_IDS, EmmiEnv, emmi_env
 from emmi_gym.env.observation import OBSERVATION_TYPES
-from emmi_gym.inputs import arguments
 from emmi_gym.navigation import executor
 from emmi_gym.scoring.oracle import OracleMap
 from emmi_gym.slam import RBPF

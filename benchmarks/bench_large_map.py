@@ -33,11 +33,11 @@ import numpy as np
 from _data import require_files
 from _options import rbpf_config
 
+from emmi_gym.commands import arguments
 from emmi_gym.concurrency.threads import set_kernel_threads
 from emmi_gym.experiments.replay import laser_stream
 from emmi_gym.formats import carmen
 from emmi_gym.geometry.grid import GridGeometry
-from emmi_gym.inputs import arguments
 from emmi_gym.scoring.scores import absolute_trajectory_error
 from emmi_gym.slam import RBPF, RBPFConfig
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world, write_carmen

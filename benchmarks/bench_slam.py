@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
+from emmi_gym.commands import arguments
 from emmi_gym.geometry.grid import GridGeometry
-from emmi_gym.inputs import arguments
 from emmi_gym.slam import RBPF, RBPFConfig
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world
 

@@ -60,8 +60,8 @@ import numpy as np
 from _timing import call_seconds, inside, timed
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
+from emmi_gym.commands import arguments
 from emmi_gym.concurrency.parallel import ProcessActor
-from emmi_gym.inputs import arguments
 from emmi_gym.training import callbacks
 from emmi_gym.training.config import algorithm_class, load_agent_config, rollout_workers
 from emmi_gym.training.rollout_workers import RolloutWorker, RolloutWorkers, acting_of, is_masked

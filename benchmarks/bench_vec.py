@@ -23,8 +23,8 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym
+from emmi_gym.commands import arguments
 from emmi_gym.concurrency.parallel import one_kernel_thread
-from emmi_gym.inputs import arguments
 
 gym.register_envs(emmi_gym)
 

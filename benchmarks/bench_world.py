@@ -21,7 +21,7 @@ import numpy as np
 import pymunk
 from _timing import median_seconds
 
-from emmi_gym.inputs import arguments
+from emmi_gym.commands import arguments
 from emmi_gym.world import GeneratorConfig, generate_world, rasterise
 from emmi_gym.world.loader import load_world
 from emmi_gym.world.simulator import Simulator

@@ -13,9 +13,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from emmi_gym.commands import arguments
 from emmi_gym.experiments.attribution import markdown
 from emmi_gym.experiments.report import read_csv
-from emmi_gym.inputs import arguments
 
 
 def main() -> None:

@@ -21,10 +21,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from emmi_gym.commands import arguments
 from emmi_gym.experiments.comparison import play_on_world, plot_pair
 from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.experiments.report import read_csv
-from emmi_gym.inputs import arguments
 from emmi_gym.training.evaluate import TrainedAgent, comparison_settings, format_table
 from emmi_gym.training.train import load_run_config
 

@@ -22,9 +22,9 @@ from _data import require_files
 from PIL import Image
 from scipy import ndimage
 
+from emmi_gym.commands import arguments
 from emmi_gym.experiments.replay import laser_stream, log_extent
 from emmi_gym.formats import carmen
-from emmi_gym.inputs import arguments
 from emmi_gym.slam import RBPFConfig
 from emmi_gym.slam.occupancy import ParticleMaps
 from emmi_gym.slam.sensor_model import CellCodes

@@ -20,8 +20,8 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym  # noqa: F401
+from emmi_gym.commands import arguments
 from emmi_gym.experiments.ab import loop_ate
-from emmi_gym.inputs import arguments
 
 
 def cloud(env, seed: int) -> tuple[float, ...]:

@@ -14,7 +14,7 @@ import argparse
 
 import numpy as np
 
-from emmi_gym.inputs import arguments
+from emmi_gym.commands import arguments
 from emmi_gym.world.laser import LaserConfig
 from emmi_gym.world.loader import load_world
 from emmi_gym.world.presets import ODOMETRY_PRESETS, odometry_config

@@ -19,9 +19,9 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym  # noqa: F401 (registers the ids)
+from emmi_gym.commands import arguments
 from emmi_gym.env.config import REWARDS
 from emmi_gym.env.registration import ENV_IDS
-from emmi_gym.inputs import arguments
 from emmi_gym.policies import make_policy
 
 HARD = {k: v for k, v in ENV_IDS["ExplorePlans-v1"].items() if k not in ("action_mode", "max_decisions")}

@@ -24,10 +24,10 @@ from pathlib import Path
 import gymnasium as gym
 from _options import checked, json_object
 
+from emmi_gym.commands import arguments
 from emmi_gym.env import REWARDS, EnvConfig
 from emmi_gym.experiments.comparison import ComparisonSettings, compare_on, worlds_of
 from emmi_gym.experiments.reward_alignment import QUALITIES, Discount, alignment, markdown, policy_front
-from emmi_gym.inputs import arguments
 from emmi_gym.inputs.validation import build
 from emmi_gym.policies import POLICY_NAMES
 

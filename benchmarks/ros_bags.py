@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 from _data import require_files
 
+from emmi_gym.commands import arguments
 from emmi_gym.experiments.replay import replay
 from emmi_gym.formats.carmen import LaserRecord, read_log
 from emmi_gym.formats.ros_bags import BagTopics, read_bag
 from emmi_gym.formats.ros_writers import STORAGES, write_log_bag
-from emmi_gym.inputs import arguments
 from emmi_gym.slam import RBPFConfig
 
 LOGS = ("intel", "aces", "csail", "freiburg-079")

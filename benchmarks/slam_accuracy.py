@@ -25,8 +25,8 @@ import argparse
 import numpy as np
 from _options import checked, preset_or_fields, rbpf_config
 
+from emmi_gym.commands import arguments
 from emmi_gym.geometry.grid import GridGeometry
-from emmi_gym.inputs import arguments
 from emmi_gym.scoring.scores import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.slam import RBPF
 from emmi_gym.world import LaserConfig, OdometryNoise, Simulator, drive_route, load_world, rasterise

@@ -32,10 +32,10 @@ import numpy as np
 from _data import require_files
 from _options import rbpf_config
 
+from emmi_gym.commands import arguments
 from emmi_gym.concurrency.threads import set_kernel_threads
 from emmi_gym.experiments.replay import replay, write_map_png, write_tum
 from emmi_gym.formats.carmen import read_log
-from emmi_gym.inputs import arguments
 from emmi_gym.slam import RBPFConfig
 
 LOGS = ("intel", "aces", "csail", "freiburg-079")

@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym
-from emmi_gym.inputs import arguments
+from emmi_gym.commands import arguments
 from emmi_gym.policies import make_policy
 
 gym.register_envs(emmi_gym)

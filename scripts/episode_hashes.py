@@ -31,7 +31,11 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym
-from emmi_gym.inputs import arguments
+
+try:
+    from emmi_gym.commands import arguments
+except ImportError:  # a version before 0.3.0 kept the argument types in emmi_gym.inputs
+    from emmi_gym.inputs import arguments
 
 ROOT = Path(__file__).resolve().parent.parent
 LOG = ROOT / "tests" / "data" / "intel-first-loop.log.gz"

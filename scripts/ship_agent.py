@@ -21,9 +21,9 @@ from pathlib import Path
 import yaml
 
 from emmi_gym import pretrained
+from emmi_gym.commands import arguments
 from emmi_gym.experiments.comparison import markdown_table, policy_means
 from emmi_gym.experiments.report import read_csv
-from emmi_gym.inputs import arguments
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.training.records import TrainingRecordError
 from emmi_gym.training.run_record import TRAINING_RECORD, machine_description

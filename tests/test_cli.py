@@ -3,7 +3,7 @@
 import pytest
 
 from emmi_gym.cli import build_parser
-from emmi_gym.inputs import arguments
+from emmi_gym.commands import arguments
 
 SEEDED = (["ab"], ["demo"], ["benchmark"], ["compare-policies"])
 WORKERS = (["ab"], ["demo"], ["clone", "c.yaml", "--out", "o"], ["evaluate", "m.zip"], ["benchmark"],

@@ -24,7 +24,8 @@ ALLOWED = {
                     "policies"},
     "training": {"inputs", "concurrency", "scoring", "env", "policies", "experiments"},
     "pretrained": {"inputs", "training"},
-    "commands": {"inputs", "certainty", "formats", "world", "slam", "env", "policies", "experiments", "training"},
+    "commands": {"inputs", "concurrency", "certainty", "formats", "world", "slam", "env", "policies", "experiments",
+                 "training", "pretrained"},
 }
 
 
@@ -53,6 +54,24 @@ def test_each_package_imports_only_the_packages_below_it():
         for path in (ROOT / package).rglob("*.py"):
             wrong = imported_packages(path) - ALLOWED[package] - {package, "__version__"}
             assert not wrong, f"{path.relative_to(ROOT)} imports {sorted(wrong)}, which {package} may not"
+
+
+def test_only_the_commands_parse_arguments_or_print():
+    """The library takes typed arguments and returns results (or reports through a callback it is given):
+    argparse and print belong to ``cli.py`` and ``commands/``, as rl-baselines3-zoo keeps them to its scripts."""
+    found = []
+    for path in ROOT.rglob("*.py"):
+        relative = path.relative_to(ROOT)
+        if relative.parts[0] == "commands" or relative == Path("cli.py"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            imported = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module] if isinstance(node, ast.ImportFrom) and node.module else []
+            if "argparse" in imported:
+                found.append(f"{relative}:{node.lineno} imports argparse")
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "print":
+                found.append(f"{relative}:{node.lineno} prints")
+    assert not found, found
 
 
 def test_no_loose_modules_beside_the_packages():

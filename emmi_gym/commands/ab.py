@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..inputs import arguments
+from . import arguments
 
 #: Bounds of the A/B options, as the env's configuration bounds them (``slam.config.MAX_PARTICLES``,
 #: ``EnvConfig.max_decisions``), checked here, before the worker processes start.

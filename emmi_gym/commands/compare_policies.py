@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..inputs import arguments
+from . import arguments
 
 
 def add_parser(subparsers) -> None:

@@ -27,4 +27,5 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..training.learning_curves import plot
 
-    return plot(args)
+    print(f"wrote {plot(args.runs, args.out, args.scores, args.baselines_csv)}")
+    return 0

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..inputs import arguments
+from . import arguments
 
 
 def add_parser(subparsers) -> None:

@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from ..env.seeds import HELD_OUT_SEED
-from ..inputs import arguments
+from . import arguments
 
 
 def add_parser(subparsers) -> None:
@@ -28,6 +28,13 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..training.checkpoint_scores import score_runs
+    from ..training.checkpoint_scores import CURVE_FILE, EPISODES_FILE, score_runs
+    from ..training.evaluate import OWN_WORLD, format_table
 
-    return score_runs(args)
+    def report(run_dir, curve) -> None:
+        print(f"{run_dir}: {len(curve)} checkpoints x {args.episodes} episodes: wrote {run_dir / CURVE_FILE} and "
+              f"{run_dir / EPISODES_FILE}\n{format_table(curve)}\n", flush=True)
+
+    score_runs(args.runs, OWN_WORLD if args.world is None else args.world, args.episodes, args.seed,
+               workers=args.workers, progress=not args.quiet, report=report)
+    return 0

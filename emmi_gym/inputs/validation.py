@@ -17,6 +17,9 @@ from .errors import FieldError, excerpt
 
 #: The longest laser range anything accepts, metres (real 2D scanners reach 80 m at most).
 MAX_LASER_RANGE = 100.0
+#: The most episodes one command plays or scores (a count past it is a typo, not an experiment: at a
+#: second an episode it would take a day on 16 cores).
+MAX_EPISODES = 100_000
 
 
 class OptionError(FieldError):

@@ -8,7 +8,6 @@ on as many episodes as wanted (``emmi-gym score-checkpoints``, :func:`score_runs
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
@@ -16,9 +15,9 @@ from ..experiments.comparison import compare_on, episodes_on
 from ..experiments.episodes import nanmean
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
-from ..inputs import arguments
 from ..inputs.paths import file_kind, output_folder
-from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings, format_table
+from ..inputs.validation import MAX_EPISODES
+from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings
 from .model_files import saved_decisions
 from .train import checkpoints, is_whole_checkpoint, load_run_config
 
@@ -35,8 +34,8 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
     named ``model_<N>``. The episodes are :func:`~emmi_gym.experiments.comparison.episodes_on`
     ``(world, episodes, seed)`` in the run's evaluation env (by default on that env's own world); a
     damaged checkpoint (cut short by a kill) is skipped with a warning."""
-    if not 1 <= episodes <= arguments.MAX_EPISODES:
-        raise ValueError(f"episodes: expected an integer in [1, {arguments.MAX_EPISODES}], got {episodes!r}")
+    if not 1 <= episodes <= MAX_EPISODES:
+        raise ValueError(f"episodes: expected an integer in [1, {MAX_EPISODES}], got {episodes!r}")
     found = whole_checkpoints(run_dir)
     settings, own_world = comparison_settings(load_run_config(found[0][1]))
     agents = [TrainedAgent(str(path), f"model_{decisions}") for decisions, path in found]
@@ -77,20 +76,23 @@ def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
 CURVE_FILE, EPISODES_FILE = "checkpoint_scores.csv", "checkpoint_episodes.csv"
 
 
-def score_runs(args: argparse.Namespace) -> int:
-    """Score every run of ``args`` (the options of ``emmi-gym score-checkpoints``) and write, in each run
-    folder, :data:`CURVE_FILE` (a row per checkpoint) and :data:`EPISODES_FILE` (every episode), each renamed
-    into place once whole.
-    Every folder is checked first (there, with checkpoints, writable), before any episode is played."""
-    for run in args.runs:
+def score_runs(runs, world=OWN_WORLD, episodes: int = 16, seed: int = EVALUATION_SEED, *,
+               workers: int | None = None, progress: bool = True, report=None) -> dict[Path, list[dict]]:
+    """Score every run folder of ``runs`` and write, in each, :data:`CURVE_FILE` (a row per checkpoint) and
+    :data:`EPISODES_FILE` (every episode), each renamed into place once whole; each run's curve, and
+    ``report(run, curve)`` once a run is written. Every folder is checked first (there, with checkpoints,
+    writable), before any episode is played."""
+    runs = [Path(run) for run in runs]
+    for run in runs:
         whole_checkpoints(run)
         output_folder(run, "run folder")
-    for run in args.runs:
-        curve, rows = score_checkpoints(run, OWN_WORLD if args.world is None else args.world, args.episodes,
-                                        args.seed, workers=args.workers, progress=not args.quiet)
+    curves = {}
+    for run in runs:
+        curve, rows = score_checkpoints(run, world, episodes, seed, workers=workers, progress=progress)
         write_csv(run / CURVE_FILE, curve)
         write_csv(run / EPISODES_FILE, rows)
-        print(f"{run}: {len(curve)} checkpoints x {args.episodes} episodes: wrote {run / CURVE_FILE} and "
-              f"{run / EPISODES_FILE}\n{format_table(curve)}\n", flush=True)
-    return 0
+        curves[run] = curve
+        if report is not None:
+            report(run, curve)
+    return curves
 

@@ -21,7 +21,6 @@ checked writable before anything is drawn, so that a blank figure is never writt
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
@@ -138,19 +137,19 @@ def draw(groups: dict[str, list[dict]], baselines: dict[str, dict[str, float]], 
     plt.close(fig)
 
 
-def plot(args: argparse.Namespace) -> int:
-    """Check the figure's file and read every file of ``args`` (the options of ``emmi-gym learning-curves``),
-    then draw."""
-    out = figure_path(args.out)
+def plot(runs, out, scores: str = "checkpoint_scores.csv", baselines_csv=None) -> Path:
+    """Check the figure's file ``out`` and read every file (``runs``: run folders, each ``FOLDER`` or
+    ``FOLDER=LABEL``, its curve in ``scores``; ``baselines_csv``: the scripted policies' episodes), then draw;
+    the figure's path."""
+    out = figure_path(out)
     groups: dict[str, list[dict]] = {}
-    for run in args.runs:
-        folder, _, label = run.partition("=")
+    for run in runs:
+        folder, _, label = str(run).partition("=")
         if not Path(folder).is_dir():
             raise FileNotFoundError(f"run folder {folder} does not exist" if not Path(folder).exists() else
                                     f"{folder}: expected a run folder, not a file")
-        groups.setdefault(label or folder, []).append(read_curve(Path(folder) / args.scores))
-    baselines = {} if args.baselines_csv is None else read_baselines(args.baselines_csv)
+        groups.setdefault(label or folder, []).append(read_curve(Path(folder) / scores))
+    baselines = {} if baselines_csv is None else read_baselines(baselines_csv)
     draw(groups, baselines, out)
-    print(f"wrote {out}")
-    return 0
+    return out
 

@@ -6,9 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 
-#: The most episodes one command plays or scores (a count past it is a typo, not an experiment: at a
-#: second an episode it would take a day on 16 cores).
-MAX_EPISODES = 100_000
+from ..inputs.validation import MAX_EPISODES
 
 
 def integer(lo: int = 0, hi: int | None = None):
@@ -48,7 +46,7 @@ EPISODES = integer(1, MAX_EPISODES)
 
 def run_command(parser: argparse.ArgumentParser, command, argv=None) -> int:
     """Parse ``argv`` with ``parser`` and return ``command(args)``; bad input (a ``ValueError``, such as the
-    package's :class:`~.errors.FieldError`, or an ``OSError``: a missing file, a folder that cannot be
+    package's :class:`~emmi_gym.inputs.errors.FieldError`, or an ``OSError``: a missing file, a folder that cannot be
     written) ends the program with its one-line message and exit status 2, not a traceback."""
     args = parser.parse_args(argv)
     try:
@@ -98,3 +96,9 @@ def ray_address(args: argparse.Namespace) -> str | None:
     """The cluster address :func:`add_ray`'s option asks for (``emmi_gym.concurrency.connect_ray``'s argument):
     ``None`` without ``--ray`` or without an address, which ``connect_ray`` reads as Ray's default."""
     return None if args.ray in (None, RAY_DEFAULT_ADDRESS) else args.ray
+
+
+def add_torch_threads(parser: argparse.ArgumentParser, default: str) -> None:
+    """``--torch-threads N``: the learner's torch threads (``default`` says what it is without the option)."""
+    parser.add_argument("--torch-threads", type=integer(1), default=None, metavar="N",
+                        help=f"torch threads of the learner (default {default})")
