@@ -24,3 +24,20 @@ def sb3_logs_in_pytest_tmp(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3_logs")))
         yield
+
+
+@pytest.fixture(autouse=True)
+def signal_handlers_left_as_found(request):
+    """A test that leaves SIGINT or SIGTERM handled otherwise than it found them (ignored, say, by code meant for
+    a worker process run in this one) would change every later test that interrupts training: the handlers are
+    put back, with a warning naming the test and what it left."""
+    import signal
+    import warnings
+
+    found = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    changed = {signal.Signals(sig).name: signal.getsignal(sig) for sig in found if signal.getsignal(sig) != found[sig]}
+    for sig, handler in found.items():
+        signal.signal(sig, handler)
+    if changed:
+        warnings.warn(f"{request.node.nodeid} left signal handlers changed: {changed}", stacklevel=1)

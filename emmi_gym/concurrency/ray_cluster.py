@@ -4,7 +4,9 @@ benchmark jobs as Ray tasks, training envs and rollout workers as Ray actors."""
 from __future__ import annotations
 
 import ipaddress
+import signal
 import socket
+import threading
 import warnings
 from urllib.parse import urlsplit
 
@@ -44,8 +46,11 @@ def connect_ray(address: str | None = LOCAL):
         warnings.warn(f"--ray {address}: {host} is not a private or loopback address; a Ray cluster has no "
                       "authentication (whoever reaches its ports runs code on every node): keep its head on a "
                       "private network (see docs/scaling.md)", stacklevel=2)
+    own_sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
     ray.init(address=None if address in (None, LOCAL) else address, include_dashboard=False,
              logging_level="ERROR", log_to_driver=False)
+    if own_sigterm is not None:  # Ray's driver handler exits at once; a run saves a checkpoint first (as Ctrl-C)
+        signal.signal(signal.SIGTERM, own_sigterm)
     return ray, True
 
 
