@@ -229,7 +229,11 @@ def test_sigterm_saves_a_checkpoint_exits_143_and_the_run_resumes_from_it(tmp_pa
     while not list((run_dir / "checkpoints").glob("model_*_steps.zip")) and time.monotonic() < deadline:
         time.sleep(0.1)
     os.killpg(process.pid, signal.SIGTERM)  # as timeout(1) does: the whole group
-    out, err = process.communicate(timeout=60)
+    try:
+        out, err = process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:  # a failure, and no process left behind (its workers end with it)
+        os.killpg(process.pid, signal.SIGKILL)
+        raise
     assert process.returncode == 143 and "Traceback" not in err and "Error" not in err
     saved = latest_checkpoint(run_dir)
     assert f"saved {saved}" in out
