@@ -283,15 +283,17 @@ def test_environments_too_large_for_memory_are_refused_with_the_size_allowed(tmp
     """Maps within the filter's bound, but not with what the environment adds per cell (the oracle's map, the
     observation): refused when the env is made (a fixed world) or draws the world (a map set), naming it."""
     from emmi_gym.concurrency.threads import kernel_threads, set_kernel_threads
+    from emmi_gym.env.memory import env_bytes_per_cell
     from emmi_gym.slam.occupancy import MapTooLarge
 
     Image.new("L", (1500, 1500), 255).save(tmp_path / "plan.png")  # 2.25 M cells at 0.1 m
     threads = kernel_threads()
     try:
         set_kernel_threads(1)  # each insertion thread adds its own working memory
-        expected = (r"plan\.png: 1500 x 1500 cells of 0\.1 m would take 4\.1 GiB in an environment with 300 "
-                    r"particles \(1964 bytes per cell: .*\), above the bound of 4 GiB; at most "
-                    f"{4 * 2**30 // 1964:,} cells")
+        per_cell = env_bytes_per_cell(300)  # the filter's maps for 300 particles, the oracle's, the env's, planning
+        expected = (rf"plan\.png: 1500 x 1500 cells of 0\.1 m would take {1500 * 1500 * per_cell / 2**30:.1f} GiB in "
+                    rf"an environment with 300 particles \({per_cell} bytes per cell: .*\), above the bound of 4 GiB; "
+                    f"at most {4 * 2**30 // per_cell:,} cells")
         with pytest.raises(MapTooLarge, match=expected):
             gym.make("emmi_gym/Explore-v1", world=str(tmp_path / "plan.png"), particles=300)
         (tmp_path / "set").mkdir()
