@@ -41,3 +41,19 @@ def signal_handlers_left_as_found(request):
         signal.signal(sig, handler)
     if changed:
         warnings.warn(f"{request.node.nodeid} left signal handlers changed: {changed}", stacklevel=1)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def memory_given_back_after_each_file():
+    """What a test file's objects held goes back to the system once the file is done (a garbage collection,
+    then glibc's ``malloc_trim``): freed heap pages otherwise stay with the pytest process, whose size then
+    adds to every worker process and Ray instance the later files start."""
+    import ctypes
+    import ctypes.util
+    import gc
+
+    yield
+    gc.collect()
+    libc = ctypes.util.find_library("c")
+    if libc is not None and hasattr(ctypes.CDLL(libc), "malloc_trim"):
+        ctypes.CDLL(libc).malloc_trim(0)
