@@ -278,7 +278,12 @@ def test_an_llvmlite_object_the_interrupt_left_half_built_is_not_printed_when_it
 
     monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", ctrl_c_while_building)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
-    stopped = train(config, tmp_path, progress=False)
+    # Ctrl-C as a terminal delivers it (pytest started as a shell's background job inherits it ignored)
+    found = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        stopped = train(config, tmp_path, progress=False)
+    finally:
+        signal.signal(signal.SIGINT, found)
     assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path)
     assert reported == [] and sys.unraisablehook is report  # not printed; the hook restored
 

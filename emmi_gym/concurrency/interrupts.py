@@ -22,11 +22,13 @@ class RunStopped(RuntimeError):
 
 
 def as_ctrl_c(signum, frame) -> None:
-    """A signal handler: do what Ctrl-C does now (the current SIGINT handler; ignored where Ctrl-C is)."""
+    """A signal handler: do what Ctrl-C does now (the current SIGINT handler), or raise KeyboardInterrupt where
+    Ctrl-C has none or is ignored: a job a shell started in the background ignores Ctrl-C, and SIGTERM must still
+    stop it (a run saving its checkpoint first), as it would have without this handler."""
     handler = signal.getsignal(signal.SIGINT)
     if callable(handler):
         handler(signal.SIGINT, frame)
-    elif handler == signal.SIG_DFL:
+    else:
         raise KeyboardInterrupt
 
 
