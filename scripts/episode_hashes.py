@@ -34,7 +34,7 @@ import emmi_gym
 
 try:
     from emmi_gym.commands import arguments
-except ImportError:  # a version before 0.3.0 kept the argument types in emmi_gym.inputs
+except ImportError:  # 0.2.0 and earlier kept the argument types in emmi_gym.inputs
     from emmi_gym.inputs import arguments
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -54,6 +54,7 @@ def memory_given_back_after_each_file():
 
     yield
     gc.collect()
-    libc = ctypes.util.find_library("c")
-    if libc is not None and hasattr(ctypes.CDLL(libc), "malloc_trim"):
-        ctypes.CDLL(libc).malloc_trim(0)
+    name = ctypes.util.find_library("c")
+    trim = getattr(ctypes.CDLL(name), "malloc_trim", None) if name else None  # glibc's; other C libraries lack it
+    if trim is not None:
+        trim(0)
