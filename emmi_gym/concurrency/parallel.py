@@ -67,16 +67,16 @@ _pool_state = {"job": False, "stopping": False}
 
 
 def _pool_worker(started) -> None:
-    """A pool worker's start: its pid to the queue ``started``, its kernels on one thread, out of the terminal's
-    process group (the parent passes Ctrl-C on, once), Ctrl-C handled by :func:`_interrupt_pool_worker` and
-    SIGTERM as Ctrl-C."""
+    """A pool worker's start: out of the terminal's process group (the parent passes Ctrl-C on, once), Ctrl-C
+    handled by :func:`_interrupt_pool_worker` and SIGTERM as Ctrl-C, then its pid to the queue ``started`` (so
+    that the Ctrl-C the parent passes on finds the handler in place), then its kernels on one thread."""
     from .interrupts import as_ctrl_c
 
-    started.put(os.getpid())
-    one_kernel_thread()
     leave_terminal_signals()
     signal.signal(signal.SIGINT, _interrupt_pool_worker)
     signal.signal(signal.SIGTERM, as_ctrl_c)
+    started.put(os.getpid())
+    one_kernel_thread()
 
 
 def _interrupt_pool_worker(signum, frame) -> None:
