@@ -26,7 +26,7 @@ from emmi_gym.experiments.comparison import play_on_world, plot_pair
 from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.experiments.report import read_csv
 from emmi_gym.training.evaluate import TrainedAgent, comparison_settings, format_table
-from emmi_gym.training.train import load_run_config
+from emmi_gym.training.run_folders import RunFolder
 
 
 def agents_of(benchmark: Path, agent_seed: int) -> dict[str, Path]:
@@ -59,7 +59,7 @@ def main() -> None:
     models = agents_of(args.benchmark, args.agent_seed)
     seed = first_held_out_seed(args.benchmark) if args.seed is None else args.seed
     reference = models.get("emmi", next(iter(models.values())))
-    settings, world = comparison_settings(load_run_config(reference))
+    settings, world = comparison_settings(RunFolder.config_of_model(reference))
     policies = [TrainedAgent(str(path), f"{reward} agent") for reward, path in models.items()] + args.baselines
     rows = [play_on_world(world, seed, policy, settings, keep_maps=True, keep_steps=True) for policy in policies]
     for row in rows:

@@ -25,9 +25,8 @@ from emmi_gym.commands import arguments
 from emmi_gym.experiments.comparison import markdown_table, policy_means
 from emmi_gym.experiments.report import read_csv
 from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
-from emmi_gym.training.records import TrainingRecordError
-from emmi_gym.training.run_record import TRAINING_RECORD, machine_description
-from emmi_gym.training.train import load_run_config, training_record
+from emmi_gym.training.run_folders import RunFolder
+from emmi_gym.training.run_folders.training_record import TRAINING_RECORD, TrainingRecordError, machine_description
 
 MAX_MODEL_BYTES = 10 * 2**20
 
@@ -57,7 +56,7 @@ def main() -> None:
     if model.stat().st_size > MAX_MODEL_BYTES:
         parser.error(f"{model} has {model.stat().st_size} bytes; a shipped agent has at most {MAX_MODEL_BYTES}")
     try:
-        record = training_record(args.run)
+        record = RunFolder(args.run).record()
     except TrainingRecordError as exc:  # damaged or hand-edited: said in a line, before anything is copied
         parser.error(str(exc))
     if record is None and args.training_seconds is None:
@@ -68,7 +67,7 @@ def main() -> None:
     for name in ("model.zip", "config.yaml", TRAINING_RECORD):
         if (args.run / name).is_file():
             shutil.copyfile(args.run / name, folder / name)
-    config = load_run_config(folder / "model.zip")
+    config = RunFolder.config_of_model(folder / "model.zip")
 
     started = time.perf_counter()
     if args.episodes_csv:

@@ -9,7 +9,8 @@ from emmi_gym import pretrained
 from emmi_gym.cli import main
 from emmi_gym.experiments.comparison import ComparisonSettings, play_on_world
 from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.train import load_run_config, train
+from emmi_gym.training.run_folders import RunFolder
+from emmi_gym.training.train import train
 from emmi_gym.world.map_sets import map_set_files
 
 #: A tiny waypoint agent on a small generated world, two decisions an episode.
@@ -43,7 +44,7 @@ def test_evaluate_plays_the_model_and_the_baselines_on_the_same_episodes(tiny_ag
     assert sorted((r["policy"], r["seed"]) for r in rows) == sorted(
         (p, s) for p in ("agent", "frontier", "random") for s in ("7", "8"))
     # the baseline's episodes are those the comparison plays on its own for the same world and seed
-    config = load_run_config(tiny_agent)
+    config = RunFolder.config_of_model(tiny_agent)
     alone = play_on_world(None, 8, "frontier", ComparisonSettings(config.env_id, config.eval_env_kwargs))
     played = next(r for r in rows if r["policy"] == "frontier" and r["seed"] == "8")
     assert float(played["ate"]) == alone["ate"] and float(played["coverage"]) == alone["coverage"]

@@ -20,8 +20,8 @@ from emmi_gym.inputs.csv_files import read_csv_file
 from emmi_gym.inputs.errors import INPUT_ERRORS
 from emmi_gym.training.config import load_agent_config
 from emmi_gym.training.demonstrations import Demonstrations
-from emmi_gym.training.model_files import check_model_file
-from emmi_gym.training.train import training_record
+from emmi_gym.training.run_folders import RunFolder
+from emmi_gym.training.run_folders.model_files import check_model_file
 
 EXAMPLES = settings(max_examples=40, deadline=None)
 
@@ -52,7 +52,7 @@ def in_a_folder(name: str, content: bytes, read) -> None:
 READERS = {
     "demos.npz": lambda path: Demonstrations.load(path),
     "agent.yaml": load_agent_config,
-    "training.yaml": lambda path: training_record(path.parent),
+    "training.yaml": lambda path: RunFolder(path.parent).record(),
     "model.zip": lambda path: check_model_file(path, "MaskablePPO"),
     "curve.csv": lambda path: read_csv_file(path, "curve", required=["timesteps"], numeric=["ate"]),
 }

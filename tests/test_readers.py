@@ -16,9 +16,10 @@ from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
 from emmi_gym.training import checkpoint_scores
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.demonstrations import Demonstrations, DemonstrationsError
-from emmi_gym.training.model_files import ModelFileError, check_model_file
-from emmi_gym.training.records import TrainingRecordError
-from emmi_gym.training.train import train, training_record
+from emmi_gym.training.run_folders import RunFolder
+from emmi_gym.training.run_folders.model_files import ModelFileError, check_model_file
+from emmi_gym.training.run_folders.training_record import TrainingRecordError
+from emmi_gym.training.train import train
 
 MEASURES = "timesteps,oracle_accuracy,ate,sim_steps,coverage\n"
 CURVE = MEASURES + "8,0.5,0.2,100,0.4\n16,0.6,0.1,90,0.5\n"
@@ -178,7 +179,7 @@ RECORD = "timesteps: 16\nwall_seconds: 4.5\nmachine: a machine\n"
 def test_a_damaged_training_record_names_the_file_and_field(tmp_path, content, expected):
     (tmp_path / "training.yaml").write_text(content)
     with pytest.raises(TrainingRecordError, match=expected):
-        training_record(tmp_path)
+        RunFolder(tmp_path).record()
 
 
 def test_a_damaged_training_record_stops_training_before_it_starts(tmp_path):
@@ -189,7 +190,7 @@ def test_a_damaged_training_record_stops_training_before_it_starts(tmp_path):
               "checkpoint_freq": 4}
     run = tmp_path / "run"
     train(parse_agent_config(config), run, progress=False)
-    assert training_record(run)["timesteps"] == 4 and set(training_record(run)) >= {"wall_seconds", "machine"}
+    assert RunFolder(run).record()["timesteps"] == 4 and set(RunFolder(run).record()) >= {"wall_seconds", "machine"}
     model = (run / "model.zip").read_bytes()
     (run / "training.yaml").write_text("wall_seconds: -100000\n")
     with pytest.raises(TrainingRecordError, match=r"training\.yaml: field 'wall_seconds'"):
@@ -241,7 +242,7 @@ def test_a_model_whose_weights_are_not_torchs_names_the_member(tmp_path, saved_m
 def test_weights_in_torchs_format_that_torch_cannot_load_name_the_file(tmp_path, saved_model):
     import pickle
 
-    from emmi_gym.training.model_files import load_model_file
+    from emmi_gym.training.run_folders.model_files import load_model_file
 
     weights = io.BytesIO()
     with zipfile.ZipFile(weights, "w") as archive:  # torch.save's layout, a pickle torch's weights-only loader refuses

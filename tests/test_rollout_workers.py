@@ -14,8 +14,9 @@ from emmi_gym.concurrency.parallel import ActorFailed
 from emmi_gym.training.config import AgentConfigError, parse_agent_config
 from emmi_gym.training.evaluate import evaluate_model
 from emmi_gym.training.rollout_workers import RolloutWorkers
+from emmi_gym.training.run_folders import RunFolder
 from emmi_gym.training.semi_markov import SemiMarkovDiscounts
-from emmi_gym.training.train import latest_checkpoint, make_vec_env, model_of, train
+from emmi_gym.training.train import make_vec_env, model_of, train
 
 #: A waypoint agent with masks and semi-Markov discounts, whose 3-decision episodes end within a rollout.
 MASKED = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},
@@ -184,7 +185,7 @@ def test_training_with_workers_stops_on_ctrl_c_resumes_and_starts_from_another_m
     data = agent(MASKED, total_timesteps=36, checkpoint_freq=12)
     run_on = interrupt_training_at(monkeypatch, 24)
     stopped = train(parse_agent_config(data), tmp_path / "run", progress=False)
-    assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path / "run")
+    assert stopped.interrupted and stopped.model_path == RunFolder(tmp_path / "run").latest_checkpoint()
     run_on()
     finished = train(parse_agent_config(data), tmp_path / "run", resume=True, progress=False)
     assert finished.timesteps >= 36 and type(MaskablePPO.load(finished.model_path)) is MaskablePPO

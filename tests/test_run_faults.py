@@ -26,7 +26,8 @@ from test_training import config_dict, interrupt_training_at
 from emmi_gym.concurrency.interrupts import RunStopped
 from emmi_gym.concurrency.parallel import ActorStalled
 from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.train import latest_checkpoint, make_vec_env, model_of, train
+from emmi_gym.training.run_folders import RunFolder
+from emmi_gym.training.train import make_vec_env, model_of, train
 
 finished, run = test_run_safety.finished, test_run_safety.run  # fixtures: a finished run, and a copy of it
 
@@ -128,12 +129,11 @@ def test_the_benchmark_checks_every_argument_before_the_first_agent(tmp_path):
 
 def test_the_benchmark_refuses_to_report_a_larger_run_under_a_smaller_budget(tmp_path):
     from emmi_gym.training.benchmark import make_jobs, run_benchmark
-    from emmi_gym.training.run_folder import RunError
-    from emmi_gym.training.train import write_run_config
+    from emmi_gym.training.run_folders import RunError
 
     config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))
     job = make_jobs(config, ["emmi"], range(1), 32, 1, [], tmp_path)[0]
-    write_run_config(job.config, job.run_dir)  # a run of this benchmark to 32 decisions
+    RunFolder(job.run_dir).write_config(job.config)  # a run of this benchmark to 32 decisions
     before = files_of(tmp_path)
     with pytest.raises(RunError, match=r"emmi_seed0: a run of this benchmark to a larger budget than --timesteps 16"):
         run_benchmark(config, ["emmi"], range(1), 16, 1, [], tmp_path, workers=1, progress=False)
@@ -150,7 +150,7 @@ def test_an_interrupted_benchmark_exits_130_and_reports_nothing(tmp_path, monkey
                         "--quiet"], capsys)
     assert code == 130 and "interrupted: the agents stopped keep their checkpoints" in err
     assert "Traceback" not in err and not (tmp_path / "bench" / "benchmark_summary.md").exists()
-    assert latest_checkpoint(tmp_path / "bench" / "runs" / "emmi_seed0") is not None
+    assert RunFolder(tmp_path / "bench" / "runs" / "emmi_seed0").latest_checkpoint() is not None
 
 
 def test_ctrl_c_in_a_pool_stops_every_job_without_a_traceback(tmp_path):
@@ -199,7 +199,7 @@ def test_a_worker_that_stops_or_dies_stops_the_run_naming_it_with_a_checkpoint_t
     assert "rollout worker 1" in message and "--resume" in message and "\n" not in message
     assert ("made no progress for 10 s" if fault == "SIGSTOP" else "the process has stopped") in message
     assert time.monotonic() - started < 100  # generous: the bound is the heartbeat's, a few seconds
-    saved = latest_checkpoint(tmp_path)
+    saved = RunFolder(tmp_path).latest_checkpoint()
     assert str(saved) in message and MaskablePPO.load(saved).num_timesteps >= 12
     assert not _worker_processes("rollout worker 1")  # stopped or not, every worker was ended
 
@@ -235,7 +235,7 @@ def test_sigterm_saves_a_checkpoint_exits_143_and_the_run_resumes_from_it(tmp_pa
         os.killpg(process.pid, signal.SIGKILL)
         raise
     assert process.returncode == 143 and "Traceback" not in err and "Error" not in err
-    saved = latest_checkpoint(run_dir)
+    saved = RunFolder(run_dir).latest_checkpoint()
     assert f"saved {saved}" in out
     stopped_at = int(saved.stem.split("_")[1])
     resumed = train(parse_agent_config(agent(MASKED, total_timesteps=stopped_at + 12, checkpoint_freq=12,
@@ -260,13 +260,12 @@ def test_ctrl_c_before_training_starts_is_one_line(tmp_path, monkeypatch, capsys
 def test_a_checkpoint_is_scored_at_its_models_count_and_nan_weights_name_the_file(finished, tmp_path):
     import torch
 
-    from emmi_gym.training.checkpoint_scores import whole_checkpoints
-    from emmi_gym.training.model_files import ModelFileError, load_model_file
+    from emmi_gym.training.run_folders.model_files import ModelFileError, load_model_file
 
     folder = tmp_path / "run"
     shutil.copytree(finished[0], folder)
     (folder / "checkpoints" / "model_16_steps.zip").rename(folder / "checkpoints" / f"model_{10**23}_steps.zip")
-    assert [decisions for decisions, _ in whole_checkpoints(folder)] == [16, 32]
+    assert [decisions for decisions, _ in RunFolder(folder).whole_checkpoints()] == [16, 32]
     model = load_model_file(folder / "model.zip", "PPO")
     with torch.no_grad():
         next(model.policy.parameters()).fill_(float("nan"))

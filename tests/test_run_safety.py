@@ -27,7 +27,8 @@ from emmi_gym.inputs.paths import write_atomically
 from emmi_gym.training.callbacks import NonFiniteError
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.imitation import Demonstrations, clone_run
-from emmi_gym.training.train import checkpoints, latest_checkpoint, model_of, train
+from emmi_gym.training.run_folders import RunFolder
+from emmi_gym.training.train import model_of, train
 
 PPO_SMALL = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
 
@@ -104,7 +105,7 @@ def test_a_new_run_into_a_folder_holding_one_is_refused_and_overwrite_starts_afr
     assert cli(["train", config, "--out", folder, "--overwrite", "--timesteps", "16", "--quiet"], capsys)[0] == 0
     record = yaml.safe_load((folder / "training.yaml").read_text())
     assert record["timesteps"] == 16 and record["wall_seconds"] < 99999 and len(record["parts"]) == 1
-    assert [decisions for decisions, _ in checkpoints(folder)] == [16]  # the old run's checkpoints are gone
+    assert [decisions for decisions, _ in RunFolder(folder).checkpoints()] == [16]  # the old run's checkpoints are gone
     assert (folder / "notes.txt").read_text() == "mine"  # what a run does not write stays
 
 
@@ -210,8 +211,8 @@ def test_training_stops_at_the_first_non_finite_weight_and_keeps_the_last_good_c
     message = str(error.value)
     assert message.startswith(f"{tmp_path}: training stopped at decision 48: after the update, the weight ")
     assert f"the newest checkpoint, of finite weights, is {tmp_path / 'checkpoints' / 'model_32_steps.zip'}" in message
-    assert not (tmp_path / "model.zip").exists() and [n for n, _ in checkpoints(tmp_path)] == [32]
-    saved = PPO.load(latest_checkpoint(tmp_path)).policy
+    assert not (tmp_path / "model.zip").exists() and [n for n, _ in RunFolder(tmp_path).checkpoints()] == [32]
+    saved = PPO.load(RunFolder(tmp_path).latest_checkpoint()).policy
     assert all(torch.isfinite(p).all() for p in saved.parameters())
     assert yaml.safe_load((tmp_path / "training.yaml").read_text())["timesteps"] == 32
 
@@ -314,11 +315,11 @@ def test_a_run_killed_at_random_moments_resumes_to_a_loadable_model_whose_record
             "--quiet",
             *(["--resume"] if part else []),
         ]
-        earlier = set(checkpoints(folder))
+        earlier = set(RunFolder(folder).checkpoints())
         process = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         try:
             waited = 0.0  # until this part trains (a checkpoint of its own), then a moment within 1.5 s
-            while set(checkpoints(folder)) <= earlier and process.poll() is None and waited < 120:
+            while set(RunFolder(folder).checkpoints()) <= earlier and process.poll() is None and waited < 120:
                 time.sleep(0.05)
                 waited += 0.05
             assert process.poll() is None, process.communicate()[1][-2000:]
@@ -326,11 +327,11 @@ def test_a_run_killed_at_random_moments_resumes_to_a_loadable_model_whose_record
         finally:
             process.send_signal(signal.SIGKILL)
             process.communicate()
-        for _, checkpoint in checkpoints(folder):  # every file in place is whole
+        for _, checkpoint in RunFolder(folder).checkpoints():  # every file in place is whole
             with zipfile.ZipFile(checkpoint) as archive:
                 assert archive.testzip() is None
-    newest = latest_checkpoint(folder)
-    decisions = 0 if newest is None else checkpoints(folder)[-1][0]
+    newest = RunFolder(folder).latest_checkpoint()
+    decisions = 0 if newest is None else RunFolder(folder).checkpoints()[-1][0]
     config = replace(parse_agent_config(data, str(tmp_path / "agent.yaml")), total_timesteps=decisions + 16)
     result = train(config, folder, resume=True, progress=False)
     model = PPO.load(result.model_path)
@@ -354,7 +355,7 @@ def test_a_run_from_a_model_interrupted_and_resumed_records_each_part(finished, 
 
 def test_the_benchmark_refuses_a_run_folder_of_something_else_before_any_job(tmp_path):
     from emmi_gym.training.benchmark import run_benchmark
-    from emmi_gym.training.run_folder import RunError
+    from emmi_gym.training.run_folders import RunError
 
     config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))
     taken = tmp_path / "runs" / "emmi_seed0"

@@ -12,10 +12,10 @@ from emmi_gym.cli import main
 from emmi_gym.experiments.episodes import GROUND_TRUTH
 from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
 from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
-from emmi_gym.training.checkpoint_scores import whole_checkpoints
 from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
 from emmi_gym.training.evaluate import evaluate_model
-from emmi_gym.training.train import checkpoints, latest_checkpoint, make_agent_env, train, training_torch_threads
+from emmi_gym.training.run_folders import RunFolder
+from emmi_gym.training.train import make_agent_env, train, training_torch_threads
 
 #: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.
 FAST_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 150}
@@ -43,7 +43,7 @@ def test_each_algorithm_trains_saves_resumes_and_evaluates(algorithm, tmp_path):
     first = train(parse_agent_config(config_dict(algorithm, env_extra, hyper)), tmp_path, progress=False)
     assert first.model_path.exists() and first.timesteps >= 96 and not first.interrupted
     assert (tmp_path / "config.yaml").exists() and (tmp_path / "checkpoints" / "model_96_steps.zip").exists()
-    assert latest_checkpoint(tmp_path) == tmp_path / "model.zip"  # a finished run resumes from its final model
+    assert RunFolder(tmp_path).latest_checkpoint() == tmp_path / "model.zip"  # a finished run resumes from its model
     with open(tmp_path / "eval_ground_truth.csv") as f:
         curve = list(csv.DictReader(f))
     assert [int(r["timesteps"]) for r in curve] == [64] and set(GROUND_TRUTH) <= set(curve[0])
@@ -103,7 +103,7 @@ def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     run_on = interrupt_training_at(monkeypatch, 40)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
     stopped = train(config, tmp_path, progress=False)
-    assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path)
+    assert stopped.interrupted and stopped.model_path == RunFolder(tmp_path).latest_checkpoint()
     assert not (tmp_path / "model.zip").exists()
     record = yaml.safe_load((tmp_path / "training.yaml").read_text())
     assert record["timesteps"] == stopped.timesteps and 0 < record["wall_seconds"] <= stopped.wall_seconds + 0.05
@@ -122,7 +122,7 @@ def test_a_resumed_run_checkpoints_and_evaluates_on_the_schedule_of_an_uninterru
     assert train(config, tmp_path, progress=False).interrupted
     run_on()
     train(config, tmp_path, resume=True, progress=False)
-    saved = {decisions for decisions, _ in checkpoints(tmp_path)}
+    saved = {decisions for decisions, _ in RunFolder(tmp_path).checkpoints()}
     assert {32, 64, 96} <= saved and saved <= {32, 40, 64, 96}, "every 32 decisions of the run, and the interruption"
     with open(tmp_path / "eval_ground_truth.csv") as f:
         assert [int(float(row["timesteps"])) for row in csv.DictReader(f)] == [32, 64, 96]
@@ -133,15 +133,15 @@ def test_a_run_extended_and_interrupted_resumes_from_its_newest_checkpoint_not_i
     hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
     train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=32, checkpoint_freq=16)), tmp_path,
           progress=False)
-    assert latest_checkpoint(tmp_path) == tmp_path / "model.zip"  # finished: its model, on a tie with model_32
+    assert RunFolder(tmp_path).latest_checkpoint() == tmp_path / "model.zip"  # finished: its model, tied with model_32
     extended = parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=96, checkpoint_freq=16))
     run_on = interrupt_training_at(monkeypatch, 56)
     assert train(extended, tmp_path, resume=True, progress=False).interrupted
-    assert latest_checkpoint(tmp_path) == tmp_path / "checkpoints" / "model_56_steps.zip"
+    assert RunFolder(tmp_path).latest_checkpoint() == tmp_path / "checkpoints" / "model_56_steps.zip"
     newest = (tmp_path / "checkpoints" / "model_56_steps.zip").read_bytes()
     (tmp_path / "checkpoints" / "model_56_steps.zip").write_bytes(newest[:100])  # cut short by a kill
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
-        scored = [(decisions, path.name) for decisions, path in whole_checkpoints(tmp_path)]
+        scored = [(decisions, path.name) for decisions, path in RunFolder(tmp_path).whole_checkpoints()]
     assert scored[-1] == (48, "model_48_steps.zip"), "the old model.zip (32 decisions) does not end the curve"
     (tmp_path / "checkpoints" / "model_56_steps.zip").write_bytes(newest)
     run_on()
@@ -195,7 +195,7 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
     # what it had printed tells when the signal came
     assert process.returncode == 130, f"returncode {process.returncode}; stdout:\n{out[-2000:]}\nstderr:\n{err[-2000:]}"
     assert "interrupted at" in out and "continue with --resume" in out and "Traceback" not in err
-    newest = latest_checkpoint(run)
+    newest = RunFolder(run).latest_checkpoint()
     with zipfile.ZipFile(newest) as archive:
         assert archive.testzip() is None
 
@@ -245,7 +245,8 @@ def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monk
     monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", ctrl_c_inside_a_c_callback)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
     stopped = train(config, tmp_path, progress=False)
-    assert stopped.interrupted and stopped.timesteps == 41 and stopped.model_path == latest_checkpoint(tmp_path)
+    assert stopped.interrupted and stopped.timesteps == 41
+    assert stopped.model_path == RunFolder(tmp_path).latest_checkpoint()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
     assert reported == [] and sys.unraisablehook is report  # not printed; the hook restored
 
@@ -284,7 +285,7 @@ def test_an_llvmlite_object_the_interrupt_left_half_built_is_not_printed_when_it
         stopped = train(config, tmp_path, progress=False)
     finally:
         signal.signal(signal.SIGINT, found)
-    assert stopped.interrupted and stopped.model_path == latest_checkpoint(tmp_path)
+    assert stopped.interrupted and stopped.model_path == RunFolder(tmp_path).latest_checkpoint()
     assert reported == [] and sys.unraisablehook is report  # not printed; the hook restored
 
 
@@ -321,7 +322,7 @@ def test_resume_skips_a_checkpoint_cut_short_by_a_kill(tmp_path):
     newest = tmp_path / "checkpoints" / "model_64_steps.zip"
     newest.write_bytes(newest.read_bytes()[:1000])  # a save cut short (as SB3's in-place saves could be)
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint .*model_64_steps.zip"):
-        assert latest_checkpoint(tmp_path) == tmp_path / "checkpoints" / "model_32_steps.zip"
+        assert RunFolder(tmp_path).latest_checkpoint() == tmp_path / "checkpoints" / "model_32_steps.zip"
     more = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
                                           timesteps=96, checkpoint_freq=32))
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
@@ -500,7 +501,7 @@ def test_a_benchmark_extended_to_a_larger_budget_and_stopped_early_trains_on_whe
 def test_saved_decisions_reads_a_model_s_count_and_names_a_file_without_one(tmp_path):
     import zipfile
 
-    from emmi_gym.training.model_files import ModelFileError, saved_decisions
+    from emmi_gym.training.run_folders.model_files import ModelFileError, saved_decisions
 
     with zipfile.ZipFile(tmp_path / "model.zip", "w") as archive:
         archive.writestr("data", '{"num_timesteps": 3072}')
@@ -598,7 +599,7 @@ def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisio
     import torch
     from stable_baselines3 import PPO
 
-    from emmi_gym.training.model_files import ModelFileError
+    from emmi_gym.training.run_folders.model_files import ModelFileError
 
     hyper = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
     first = train(parse_agent_config(config_dict("PPO", hyper=hyper)), tmp_path / "first", progress=False)

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from ..env.seeds import DEMONSTRATION_SEED
 from . import arguments
@@ -44,12 +43,12 @@ def run(args: argparse.Namespace) -> int:
         collect_demonstrations,
         write_clone_record,
     )
-    from ..training.run_folder import check_new_run_folder, clear_run_folder
+    from ..training.run_folders import RunFolder
 
     if args.policy not in POLICY_NAMES:
         raise ValueError(f"--policy: unknown {args.policy!r}; choose from {list(POLICY_NAMES)}")
-    check_new_run_folder(Path(args.out), args.overwrite, resumable=False, inputs={"--demos": args.demos},
-                         files=CLONE_FILES)
+    folder = RunFolder(args.out, CLONE_FILES)
+    folder.check_new(args.overwrite, resumable=False, inputs={"--demos": args.demos})
     out = output_folder(args.out)
     config = load_agent_config(args.config)
     check_cloneable(config)  # before any episode is played
@@ -59,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         demonstrations = collect_demonstrations(config, args.policy, args.episodes, args.seed, workers=args.workers,
                                                 progress=not args.quiet)
     if args.overwrite:  # once every input is read
-        clear_run_folder(out, CLONE_FILES)
+        folder.clear()
     if not args.demos:
         demonstrations.save(out / "demonstrations.npz")
     print(f"{len(demonstrations)} decisions of {args.policy} in {demonstrations.episodes} episodes")

@@ -41,13 +41,14 @@ def run(args: argparse.Namespace) -> int:
     from ..experiments.episodes import summarise
     from ..inputs.paths import output_folder
     from ..training.evaluate import evaluate_model, format_table
-    from ..training.train import load_run_config, set_torch_threads
+    from ..training.run_folders import RunFolder
+    from ..training.train import set_torch_threads
 
     set_torch_threads(args.torch_threads)
     if args.video is not None:
         output_folder(args.video, "--video")
     model, name = _model_to_evaluate(args)
-    config = load_run_config(model)  # loaded once: checking it makes the env
+    config = RunFolder.config_of_model(model)  # loaded once: checking it makes the env
     if args.world is not None or args.baselines:
         return _evaluate_beside_baselines(args, model, name, config)
     print(f"evaluating on {config.env_id} ({config.eval_env_kwargs}), episodes seeded from {args.seed}")

@@ -40,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..inputs.paths import output_folder
     from ..training.config import ROLLOUT_WORKERS, load_agent_config
+    from ..training.run_folders import RunFolder
     from ..training.train import set_torch_threads, train, training_torch_threads
 
     if args.out is not None:
@@ -65,5 +66,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"\ninterrupted at {result.timesteps} steps: saved {result.model_path}; continue with --resume")
         return 130
     print(f"trained {result.timesteps} steps in {result.wall_seconds:.0f} s: wrote {result.model_path} and "
-          f"{Path(out) / 'config.yaml'}")
+          f"{RunFolder(out).config_path}")
     return 0

@@ -34,9 +34,9 @@ def model_path(name: str) -> Path:
 
 def config(name: str):
     """The :class:`~emmi_gym.training.config.AgentConfig` the agent ``name`` was trained with."""
-    from ..training.train import load_run_config
+    from ..training.run_folders import RunFolder
 
-    return load_run_config(model_path(name))
+    return RunFolder.config_of_model(model_path(name))
 
 
 def load(name: str):

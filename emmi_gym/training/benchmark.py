@@ -32,9 +32,8 @@ from ..inputs.paths import write_atomically, write_text_atomically
 from ..scoring.directions import better_side, format_number
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
-from .run_folder import RunError, RunStart, differing_fields, folder_entries
+from .run_folders import RunError, RunFolder, RunStart
 from .train import make_agent_env, set_torch_threads, train
-from .warm_start import check_init_from
 
 #: Ground-truth columns of the benchmark table, with their labels.
 TABLE_COLUMNS = {
@@ -74,7 +73,8 @@ def run_job(job: Job) -> dict:
     started = time.perf_counter()
     curve = []
     if job.kind == "agent":
-        model_path = job.run_dir / "model.zip"
+        folder = RunFolder(job.run_dir)
+        model_path = folder.model_path
         state = run_state(job)
         trained = state != "finished"
         if trained:
@@ -85,7 +85,7 @@ def run_job(job: Job) -> dict:
                 raise KeyboardInterrupt
             model_path = result.model_path
         rows = evaluate_model(model_path, job.episodes, job.episode_seed)
-        evaluations = job.run_dir / "eval_ground_truth.csv"
+        evaluations = folder.ground_truth_path
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
             with open(evaluations) as f:
                 curve = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
@@ -109,26 +109,20 @@ def run_state(job: Job) -> str:
     finished a smaller budget: resumed, to the budget asked), ``"larger"`` (a run of them to a larger budget
     than asked: never cut back, nor reported under the smaller) or ``"other"`` (anything else); the last two
     are refused by :func:`run_benchmark` before any job starts."""
-    from .config import load_agent_config
-    from .model_files import saved_decisions
-    from .train import training_record
-
-    if not folder_entries(job.run_dir):
+    folder = RunFolder(job.run_dir)
+    if not folder.entries():
         return "new"
-    own = job.run_dir / "config.yaml"
-    started_from = (training_record(job.run_dir) or {}).get("init_from")
-    same = own.is_file() and started_from == (None if job.init_from is None else str(job.init_from)) and \
-        not differing_fields(load_agent_config(own), job.config, ignore=("total_timesteps",))
+    started_from = (folder.record() or {}).get("init_from")
+    same = folder.config_path.is_file() and started_from == (None if job.init_from is None else str(job.init_from)) \
+        and not folder.differences(job.config, ignore=("total_timesteps",))
     if not same:
         return "other"
-    model = job.run_dir / "model.zip"
-    budget = load_agent_config(own).total_timesteps
+    budget = folder.config().total_timesteps
     if budget > job.config.total_timesteps:
         return "larger"
     # the budget and the model must both be this job's: a run extended to a larger budget and stopped before
     # its end holds the new budget beside the model of the old one
-    finished = model.is_file() and budget == job.config.total_timesteps and \
-        saved_decisions(model) >= job.config.total_timesteps
+    finished = budget == job.config.total_timesteps and (folder.finished_decisions() or 0) >= job.config.total_timesteps
     return "finished" if finished else "unfinished"
 
 
@@ -203,7 +197,7 @@ def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes:
                      eval_seed)
     agents = [job for job in jobs if job.kind == "agent"]
     if init_from is not None and agents:
-        start = check_init_from(init_from, agents[0].config, allow_no_training)
+        start = RunFolder.check_init_from(init_from, agents[0].config, allow_no_training)
         if report is not None:
             report(f"every agent: {RunStart(start.path, start.path).summary(start.decisions, timesteps)}")
     states = {job.run_dir: run_state(job) for job in agents}

@@ -15,11 +15,10 @@ from ..experiments.comparison import compare_on, episodes_on
 from ..experiments.episodes import nanmean
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
-from ..inputs.paths import file_kind, output_folder
+from ..inputs.paths import output_folder
 from ..inputs.validation import MAX_EPISODES
 from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings
-from .model_files import saved_decisions
-from .train import checkpoints, is_whole_checkpoint, load_run_config
+from .run_folders import RunFolder
 
 #: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
 MEASURES = ("return", "oracle_accuracy", "wall_consistency", "ate", "map_accuracy", "coverage", "reached_target",
@@ -36,8 +35,8 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
     damaged checkpoint (cut short by a kill) is skipped with a warning."""
     if not 1 <= episodes <= MAX_EPISODES:
         raise ValueError(f"episodes: expected an integer in [1, {MAX_EPISODES}], got {episodes!r}")
-    found = whole_checkpoints(run_dir)
-    settings, own_world = comparison_settings(load_run_config(found[0][1]))
+    found = RunFolder(run_dir).whole_checkpoints()
+    settings, own_world = comparison_settings(RunFolder.config_of_model(found[0][1]))
     agents = [TrainedAgent(str(path), f"model_{decisions}") for decisions, path in found]
     rows = compare_on(episodes_on(own_world if world is OWN_WORLD else world, episodes, seed), agents, settings,
                       workers=workers, progress=progress, start_method="spawn")  # torch and fork do not mix
@@ -46,30 +45,6 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
         mine = [r for r in rows if r["policy"] == f"model_{decisions}"]
         curve.append({"timesteps": decisions, **{k: nanmean([r.get(k, math.nan) for r in mine]) for k in MEASURES}})
     return curve, rows
-
-
-def whole_checkpoints(run_dir) -> list[tuple[int, Path]]:
-    """The whole checkpoints of the run folder ``run_dir`` (see :func:`score_checkpoints`), ``(decisions, path)``,
-    and its final ``model.zip`` where the run finished with more decisions than its last checkpoint (the curve's
-    end: a 3,000-decision budget ends at 3,072, and a resumed run's last checkpoint may lie 900 decisions
-    before its end); a ``FileNotFoundError`` that says which is missing, the folder or its checkpoints."""
-    run_dir = Path(run_dir)
-    if not run_dir.exists():
-        raise FileNotFoundError(f"run folder {run_dir} does not exist")
-    if not run_dir.is_dir():
-        raise FileNotFoundError(f"{run_dir}: expected a run folder of 'emmi-gym train', not "
-                                f"{file_kind(run_dir.stat().st_mode)}")
-    # each at the decisions its model holds (a file's name may say anything)
-    found = sorted((saved_decisions(path), path) for _, path in checkpoints(run_dir) if is_whole_checkpoint(path))
-    final = run_dir / "model.zip"
-    if final.is_file() and is_whole_checkpoint(final):
-        finished_at = saved_decisions(final)
-        if finished_at > (found[-1][0] if found else 0):
-            found.append((finished_at, final))
-    if not found:
-        raise FileNotFoundError(f"no checkpoint in {run_dir / 'checkpoints'}: was {run_dir} written by "
-                                "'emmi-gym train'?")
-    return found
 
 
 #: The files :func:`score_runs` writes into each run folder.
@@ -84,7 +59,7 @@ def score_runs(runs, world=OWN_WORLD, episodes: int = 16, seed: int = EVALUATION
     writable), before any episode is played."""
     runs = [Path(run) for run in runs]
     for run in runs:
-        whole_checkpoints(run)
+        RunFolder(run).whole_checkpoints()
         output_folder(run, "run folder")
     curves = {}
     for run in runs:

@@ -10,8 +10,9 @@ from pathlib import Path
 from ..env.seeds import HELD_OUT_SEED
 from ..experiments.episodes import ModelActor, play_episodes
 from ..scoring.directions import better_side, format_number
-from .model_files import load_model_file
-from .train import load_run_config, make_agent_env
+from .run_folders import RunFolder
+from .run_folders.model_files import load_model_file
+from .train import make_agent_env
 
 #: ``world`` of :func:`compare_model` that means the run's evaluation env's own world.
 OWN_WORLD = object()
@@ -66,7 +67,7 @@ def load_model(model_path, config=None):
     model_path = Path(model_path)
     if not model_path.is_file():
         raise FileNotFoundError(f"no model at {model_path}")
-    config = config or load_run_config(model_path)
+    config = config or RunFolder.config_of_model(model_path)
     return load_model_file(model_path, config.algorithm, device="cpu"), config
 
 
@@ -90,7 +91,7 @@ def compare_model(model_path, name: str = "agent", world=OWN_WORLD, episodes: in
     :func:`~emmi_gym.experiments.comparison.episodes_on` says. Rows carry ``name`` for the model."""
     from ..experiments.comparison import compare_on, episodes_on
 
-    settings, own_world = comparison_settings(load_run_config(Path(model_path)))
+    settings, own_world = comparison_settings(RunFolder.config_of_model(model_path))
     pairs = episodes_on(own_world if world is OWN_WORLD else world, episodes, seed)
     return compare_on(pairs, [TrainedAgent(str(model_path), name), *baselines], settings, workers=workers,
                       progress=progress, start_method="spawn")  # torch and fork do not mix
@@ -111,7 +112,7 @@ def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> li
         gaps = {key: mine[key]["oracle_accuracy"] - theirs[key]["oracle_accuracy"] for key in mine.keys() & theirs}
         went_back = [key for key in gaps if mine[key].get("revisit_share", 0) > 0] or list(gaps)
         world, seed = max(sorted(went_back), key=lambda key: abs(gaps[key]))
-        settings, _ = comparison_settings(load_run_config(Path(model_path)))
+        settings, _ = comparison_settings(RunFolder.config_of_model(model_path))
         world = None if world == "None" else world  # rows name a generated world "None"
         episodes = [play_on_world(world, seed, policy, settings, keep_maps=True, keep_steps=True)
                     for policy in (TrainedAgent(str(model_path), name), baselines[0])]

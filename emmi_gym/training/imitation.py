@@ -21,6 +21,7 @@ from ..inputs.paths import write_atomically, write_text_atomically
 from .callbacks import NonFiniteError, first_non_finite
 from .config import AgentConfig
 from .demonstrations import Demonstrations
+from .run_folders import RunFolder
 
 #: What ``emmi-gym clone`` writes into its folder (all that ``--overwrite`` removes).
 CLONE_FILES = ("model.zip", "config.yaml", "demonstrations.npz", "clone.yaml")
@@ -160,12 +161,10 @@ def cloned_model(config: AgentConfig, demonstrations: Demonstrations, **fit):
 def clone_run(config: AgentConfig, demonstrations: Demonstrations, run_dir, **fit):
     """Write a run folder that ``emmi-gym train --init-from`` continues (``model.zip``, ``config.yaml``);
     the model's path, the losses per epoch and the model. Nothing is written if the fit fails."""
-    from .train import write_run_config
-
-    run_dir = Path(run_dir)
+    folder = RunFolder(run_dir, CLONE_FILES)
     model, losses = cloned_model(config, demonstrations, **fit)
-    write_run_config(config, run_dir)
-    return write_atomically(run_dir / "model.zip", model.save), losses, model
+    folder.write_config(config)
+    return write_atomically(folder.model_path, model.save), losses, model
 
 
 def write_clone_record(run_dir, record: dict) -> Path:

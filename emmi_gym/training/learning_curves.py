@@ -30,6 +30,7 @@ from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..inputs.csv_files import CsvFileError, read_csv_file
 from ..inputs.paths import output_file, write_atomically
 from ..policies import POLICY_NAMES
+from .run_folders import RunFolder
 
 MEASURES = {"oracle_accuracy": "accuracy against the oracle map", "ate": "ATE (m)",
             "sim_steps": "simulator steps", "coverage": "coverage"}
@@ -144,11 +145,10 @@ def plot(runs, out, scores: str = "checkpoint_scores.csv", baselines_csv=None) -
     out = figure_path(out)
     groups: dict[str, list[dict]] = {}
     for run in runs:
-        folder, _, label = str(run).partition("=")
-        if not Path(folder).is_dir():
-            raise FileNotFoundError(f"run folder {folder} does not exist" if not Path(folder).exists() else
-                                    f"{folder}: expected a run folder, not a file")
-        groups.setdefault(label or folder, []).append(read_curve(Path(folder) / scores))
+        path, _, label = str(run).partition("=")
+        folder = RunFolder(path)
+        folder.check_exists()
+        groups.setdefault(label or path, []).append(read_curve(folder.path / scores))
     baselines = {} if baselines_csv is None else read_baselines(baselines_csv)
     draw(groups, baselines, out)
     return out

@@ -1,16 +1,11 @@
 """Training an agent from its configuration: vectorised envs, TensorBoard, SB3's progress bar,
 periodic held-out evaluation with the ground-truth metrics, checkpoints, resuming, Ctrl-C safety.
 
-A run folder holds ``config.yaml`` (the resolved configuration), ``model.zip`` (the final
-model), ``checkpoints/`` (``model_<steps>_steps.zip``, with the replay buffer for off-policy
-algorithms), ``eval/`` (SB3's ``evaluations.npz`` and the best model),
-``eval_ground_truth.csv`` (the ground-truth means of every evaluation), ``training.yaml``
-(:mod:`~emmi_gym.training.run_record`) and ``tb/`` (TensorBoard logs). What a run checks before
-it writes anything (a folder in use, a resumed configuration, the model it starts from) is
-:mod:`~emmi_gym.training.run_folder`'s; every file is written under a temporary name and renamed
-into place (:func:`~emmi_gym.inputs.paths.write_atomically`), and training stops at the first
-non-finite number (:class:`~emmi_gym.training.callbacks.StopOnNonFinite`), so no file of a run is
-ever half written or holds NaN weights.
+The run folder, its files and what a run checks before it writes anything (a folder in use, a resumed
+configuration, the model it starts from) are :class:`~emmi_gym.training.run_folders.RunFolder`'s; every file
+is written under a temporary name and renamed into place (:func:`~emmi_gym.inputs.paths.write_atomically`),
+and training stops at the first non-finite number (:class:`~emmi_gym.training.callbacks.StopOnNonFinite`),
+so no file of a run is ever half written or holds NaN weights.
 """
 
 from __future__ import annotations
@@ -18,51 +13,31 @@ from __future__ import annotations
 import copy
 import gc
 import os
-import re
 import signal
 import sys
 import threading
 import time
 import warnings
-import zipfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
 import gymnasium as gym
-import yaml
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from ..concurrency.interrupts import RunStopped
 from ..concurrency.parallel import ActorFailed, leave_terminal_signals, one_kernel_thread
 from ..experiments.loop_order import LoopOrderInfo
-from ..inputs.paths import write_atomically, write_text_atomically
+from ..inputs.paths import write_atomically
 from .callbacks import NonFiniteError, OnRunSchedule, StopOnNonFinite, check_weights, eval_callback_class
-from .config import (
-    AgentConfig,
-    algorithm_class,
-    load_agent_config,
-    policy_argument,
-    rollout_workers,
-    sb3_policy_kwargs,
-)
-from .model_files import load_model_file, saved_decisions
-from .records import read_training_record
-from .run_folder import (
-    RunError,
-    RunStart,
-    check_new_run_folder,
-    check_resumable,
-    clear_run_folder,
-    run_config_path,
-)
-from .run_record import TRAINING_RECORD, earlier_parts, record_training
+from .config import AgentConfig, algorithm_class, policy_argument, rollout_workers, sb3_policy_kwargs
+from .run_folders import RunFolder, RunStart
+from .run_folders.model_files import load_model_file
+from .run_folders.training_record import earlier_parts
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
-from .warm_start import check_init_from, check_model_fits
 
-_CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip$")
 OFF_POLICY = ("DQN", "SAC")
 
 
@@ -234,55 +209,6 @@ class StopOnInterrupt(BaseCallback):
         return True
 
 
-def is_whole_zip(path: Path) -> bool:
-    """Whether ``path`` is a zip archive whose members all read back (a save cut short by a kill is not)."""
-    try:
-        with zipfile.ZipFile(path) as archive:
-            return archive.testzip() is None
-    except (zipfile.BadZipFile, OSError):
-        return False
-
-
-def latest_checkpoint(run_dir: Path, algorithm: str | None = None) -> Path | None:
-    """The checkpoint of a run folder to continue from: of the final ``model.zip`` and the checkpoints that
-    are whole archives (one cut short by a kill is skipped, with a warning; with ``algorithm``, so is one that
-    is not a model of it that loads, :func:`~emmi_gym.training.model_files.check_model_file`), the one with the
-    most decisions, ``model.zip`` on a tie (a run extended to a larger budget and stopped holds checkpoints
-    past its old ``model.zip``)."""
-    found = [(decisions, False, path) for decisions, path in checkpoints(run_dir)]
-    final = Path(run_dir) / "model.zip"
-    if final.exists() and is_whole_checkpoint(final, algorithm):
-        found.append((saved_decisions(final), True, final))
-    return next((path for *_, path in sorted(found, reverse=True) if path == final or
-                 is_whole_checkpoint(path, algorithm)), None)
-
-
-def is_whole_checkpoint(path: Path, algorithm: str | None = None) -> bool:
-    """Whether a checkpoint is a whole archive (with ``algorithm``: a model of it, its members undamaged, as
-    :func:`~emmi_gym.training.model_files.check_model_file` checks); a damaged one (cut short by a kill) is
-    skipped with a warning."""
-    from .model_files import ModelFileError, check_model_file
-
-    if not is_whole_zip(path):
-        warnings.warn(f"skipping the damaged checkpoint {path} (not a whole zip archive)", stacklevel=3)
-        return False
-    try:
-        if algorithm is None:
-            saved_decisions(path)
-        else:
-            check_model_file(path, algorithm)
-    except ModelFileError as exc:
-        warnings.warn(f"skipping the damaged checkpoint {exc}", stacklevel=3)
-        return False
-    return True
-
-
-def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
-    """The checkpoints of a run folder, ``(decisions, path)``, fewest decisions first."""
-    return sorted((int(m.group(1)), p) for p in (Path(run_dir) / "checkpoints").glob("model_*_steps.zip")
-                  if (m := _CHECKPOINT.search(p.name)))
-
-
 class AtomicCheckpointCallback(OnRunSchedule, CheckpointCallback):
     """SB3's checkpoints (same names; the schedule counted from the run's start, :class:`OnRunSchedule`),
     each written to a temporary file and renamed, only of finite weights; ``on_save(decisions)`` is called
@@ -330,29 +256,6 @@ def close_vec_env(env, timeout: float = 3.0) -> None:
     env.closed = True
 
 
-def training_record(run_dir) -> dict | None:
-    """The run folder's :data:`TRAINING_RECORD` as written by :func:`~emmi_gym.training.run_record.record_training`
-    (the fields it sets, checked: a :class:`~emmi_gym.training.records.TrainingRecordError` naming the file and field
-    otherwise); None if it has none."""
-    path = Path(run_dir) / TRAINING_RECORD
-    return read_training_record(path) if path.exists() else None
-
-
-def load_run_config(model_path) -> AgentConfig:
-    """The configuration written beside a model (in its folder or the run folder above a checkpoint)."""
-    path = run_config_path(model_path)
-    if path is None:
-        raise FileNotFoundError(f"no config.yaml beside {model_path} or in its run folder: was it written by "
-                                f"'emmi-gym train'?")
-    return load_agent_config(path)
-
-
-def write_run_config(config: AgentConfig, run_dir: Path) -> None:
-    """Write ``config`` (resolved) as the run folder's ``config.yaml``, which :func:`load_run_config` reads."""
-    run_dir.mkdir(parents=True, exist_ok=True)
-    write_text_atomically(run_dir / "config.yaml", yaml.safe_dump(config.as_yaml_dict(), sort_keys=False))
-
-
 def sb3_hyperparameters(config: AgentConfig, env) -> dict:
     """The keywords of ``config``'s SB3 algorithm for a model on ``env``: its hyperparameters, the policy's
     keywords as SB3 takes them, and the semi-Markov rollout buffer where ``discount_unit`` is set."""
@@ -374,42 +277,11 @@ def model_of(config: AgentConfig, env, **kwargs):
                                                                  **sb3_hyperparameters(config, env))
 
 
-def plan_run(config: AgentConfig, folder, *, resume: bool = False, overwrite: bool = False, init_from=None,
-             allow_no_training: bool = False) -> RunStart:
-    """Make every check of a run of ``config`` into ``folder`` before anything is written
-    (:mod:`~emmi_gym.training.run_folder`, :mod:`~emmi_gym.training.warm_start`) and say where it starts."""
-    folder = Path(folder)
-    if resume and overwrite:
-        raise RunError("--resume continues the run in the folder and --overwrite replaces it: give one of them")
-    if resume and init_from is not None:
-        raise RunError("--init-from starts a new run from a model; --resume continues the run in the folder "
-                       "(which remembers the model it started from): give one of them")
-    if not resume:
-        check_new_run_folder(folder, overwrite, inputs={"--init-from": init_from})
-        if init_from is None:
-            return RunStart(None, overwrite=overwrite)
-        start = check_init_from(init_from, config, allow_no_training)
-        return RunStart(start.path, start.path, start.decisions, overwrite=overwrite)
-    check_resumable(config, folder)
-    record = training_record(folder) or {}
-    init_path = Path(record["init_from"]) if record.get("init_from") is not None else None
-    checkpoint = latest_checkpoint(folder, config.algorithm)
-    if checkpoint is None and init_path is not None:  # stopped before its first checkpoint: from its start again
-        checkpoint = check_init_from(init_path, config, allow_no_training=True).path
-    elif checkpoint is not None:
-        decisions = check_model_fits(checkpoint, config, f"--resume: {checkpoint}")
-        if decisions > config.total_timesteps:
-            raise RunError(f"--resume: the run in {folder} holds {decisions} decisions ({checkpoint}), more than "
-                           f"total_timesteps {config.total_timesteps}: a run is not cut back. Give --timesteps "
-                           f"{decisions} or more, or start a new run with another --out")
-    return RunStart(checkpoint, init_path, int(record.get("init_decisions", 0)), record)
-
-
 def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool = False, progress: bool = True,
           verbose: int = 0, ray_address: str | None = None, init_from=None, allow_no_training: bool = False,
           report=None) -> TrainResult:
-    """Train ``config`` into ``run_dir`` (see the module docstring), after every check of
-    :func:`plan_run` (a new run needs an empty folder, or ``overwrite``,
+    """Train ``config`` into the run folder ``run_dir`` (:class:`~emmi_gym.training.run_folders.RunFolder`), after every
+    check of :meth:`~emmi_gym.training.run_folders.RunFolder.plan` (a new run needs an empty folder, or ``overwrite``,
     which first removes the run files there); with ``resume``, continue the folder's run from its
     latest checkpoint up to ``config.total_timesteps``; ``ray_address``: the Ray cluster of ``vec_env:
     ray`` (see :func:`make_vec_env`). ``init_from``: a model (of the same algorithm, env id, spaces and
@@ -419,17 +291,16 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
     with a sentence saying where the run starts and how many decisions it will train."""
     from stable_baselines3.common.callbacks import CallbackList
 
-    run_dir = Path(run_dir)
-    checkpoint_dir = run_dir / "checkpoints"
-    start = plan_run(config, run_dir, resume=resume, overwrite=overwrite, init_from=init_from,
-                     allow_no_training=allow_no_training)
+    folder = RunFolder(run_dir)
+    start = folder.plan(config, resume=resume, overwrite=overwrite, init_from=init_from,
+                        allow_no_training=allow_no_training)
     if start.overwrite:
-        clear_run_folder(run_dir)
-    write_run_config(config, run_dir)
+        folder.clear()
+    folder.write_config(config)
 
     env = make_vec_env(config, config.n_envs, config.seed, config.vec_env, ray_address=ray_address)
     eval_env = make_vec_env(config, 1, config.eval.seed, "dummy", evaluation=True) if config.eval.freq else None
-    model = _start_model(config, start, env, run_dir, verbose)
+    model = _start_model(config, start, env, folder, verbose)
     first = int(model.num_timesteps)
     earlier = earlier_parts(start.record, first)
     if report is not None:
@@ -437,21 +308,21 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
     started = time.perf_counter()
 
     def record(decisions: int) -> None:
-        record_training(run_dir, earlier, first, decisions, time.perf_counter() - started, start.init_from,
-                        start.init_decisions)
+        folder.write_record(earlier, first, decisions, time.perf_counter() - started, start.init_from,
+                            start.init_decisions)
 
     if start.model is not None and start.model == start.init_from and not earlier:  # names its start from now on
-        record_training(run_dir, [], first, first, None, start.init_from, start.init_decisions)
+        folder.write_record([], first, first, None, start.init_from, start.init_decisions)
     per_env = max(1, config.n_envs)
-    checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(checkpoint_dir),
+    checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(folder.checkpoint_dir),
                                              name_prefix="model", save_replay_buffer=config.algorithm in OFF_POLICY,
                                              on_save=record, run_origin=start.init_decisions)
     callbacks = [StopOnNonFinite(), checkpointing]
     if eval_env is not None:
         callbacks.append(eval_callback_class(config.algorithm)(
             eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
-            log_path=str(run_dir / "eval"), best_model_save_path=str(run_dir / "eval"), deterministic=True,
-            verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=run_dir / "eval_ground_truth.csv",
+            log_path=str(folder.eval_dir), best_model_save_path=str(folder.eval_dir), deterministic=True,
+            verbose=verbose, eval_seed=config.eval.seed, ground_truth_csv=folder.ground_truth_path,
             run_origin=start.init_decisions))
     if config.discount_unit is not None:
         callbacks.append(SemiMarkovDiscounts(config.discount_unit))
@@ -468,38 +339,37 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
                             progress_bar=progress, reset_num_timesteps=start.model is None, tb_log_name="run")
             check_weights(model, "at the end")
             with interrupts_deferred():
-                model_path = write_atomically(run_dir / "model.zip", partial(_save, model, record))
+                model_path = write_atomically(folder.model_path, partial(_save, model, record))
         except KeyboardInterrupt:  # Ctrl-C, kill -INT or SIGTERM: keep what was learnt, as a checkpoint to resume
             interrupted = True
-            model_path = _save_checkpoint(model, config, checkpoint_dir, record, "at the interruption")
+            model_path = _save_checkpoint(model, config, folder, record, "at the interruption")
         except ActorFailed as exc:  # a worker died or made no progress: keep what was learnt, say how to go on
-            saved = _save_checkpoint(model, config, checkpoint_dir, record, "when a worker failed")
+            saved = _save_checkpoint(model, config, folder, record, "when a worker failed")
             raise RunStopped(f"{exc}. The run stopped and saved {saved}; continue it with: emmi-gym train "
-                             f"{config.source} --resume --out {run_dir}") from None
+                             f"{config.source} --resume --out {folder.path}") from None
         except NonFiniteError as exc:
-            newest = latest_checkpoint(run_dir)
-            raise NonFiniteError(f"{run_dir}: {exc}. Nothing of it was saved; the newest checkpoint, of finite "
+            newest = folder.latest_checkpoint()
+            raise NonFiniteError(f"{folder.path}: {exc}. Nothing of it was saved; the newest checkpoint, of finite "
                                  f"weights, is {newest if newest is not None else 'none yet'}") from None
         finally:
             close_vec_env(env)
             if eval_env is not None:
                 close_vec_env(eval_env)
-    return TrainResult(run_dir, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
+    return TrainResult(folder.path, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
 
 
-def _save_checkpoint(model, config: AgentConfig, checkpoint_dir: Path, record, when: str) -> Path:
-    """Save ``model`` as a checkpoint (with its replay buffer, off-policy) that ``--resume`` continues from, once its
-    weights are checked finite (``when`` says when, for the error), and record the run; a second Ctrl-C must not
-    cut the save short. Its path."""
+def _save_checkpoint(model, config: AgentConfig, folder: RunFolder, record, when: str) -> Path:
+    """Save ``model`` as a checkpoint of the run in ``folder`` (with its replay buffer, off-policy) that ``--resume``
+    continues from, once its weights are checked finite (``when`` says when, for the error), and record the run; a
+    second Ctrl-C must not cut the save short. Its path."""
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _handles_ctrl_c() else None
     try:
         check_weights(model, when)
-        checkpoint_dir.mkdir(parents=True, exist_ok=True)
+        checkpoint = folder.checkpoint_path(int(model.num_timesteps))
+        checkpoint.parent.mkdir(parents=True, exist_ok=True)
         if config.algorithm in OFF_POLICY:
-            write_atomically(checkpoint_dir / f"model_replay_buffer_{model.num_timesteps}_steps.pkl",
-                             model.save_replay_buffer)
-        return write_atomically(checkpoint_dir / f"model_{model.num_timesteps}_steps.zip",
-                                partial(_save, model, record))
+            write_atomically(folder.replay_buffer_path(checkpoint), model.save_replay_buffer)
+        return write_atomically(checkpoint, partial(_save, model, record))
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
@@ -511,11 +381,11 @@ def _save(model, record, path: Path) -> None:
     record(int(model.num_timesteps))
 
 
-def _start_model(config: AgentConfig, start: RunStart, env, run_dir: Path, verbose: int):
+def _start_model(config: AgentConfig, start: RunStart, env, folder: RunFolder, verbose: int):
     """The model a run starts with: the run's own checkpoint (with its replay buffer), the weights of the model
     it starts from (``init_from``: the network is the saved one's, every other setting this configuration's),
     or a fresh model of ``config``."""
-    tensorboard_log = str(run_dir / "tb")
+    tensorboard_log = str(folder.tensorboard_dir)
     if start.model is None:
         return model_of(config, env, tensorboard_log=tensorboard_log, verbose=verbose)
     if start.model == start.init_from:
@@ -524,7 +394,7 @@ def _start_model(config: AgentConfig, start: RunStart, env, run_dir: Path, verbo
         return load_model_file(start.model, config.algorithm, env=env, seed=config.seed,
                                tensorboard_log=tensorboard_log, verbose=verbose, **hyperparameters)
     model = load_model_file(start.model, config.algorithm, env=env, tensorboard_log=tensorboard_log)
-    buffer = start.model.with_name(start.model.name.replace("model_", "model_replay_buffer_").replace(".zip", ".pkl"))
+    buffer = folder.replay_buffer_path(start.model)
     if config.algorithm in OFF_POLICY and buffer.exists():
         model.load_replay_buffer(buffer)
     return model

@@ -18,10 +18,10 @@ import zlib
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..inputs.errors import FieldError
-from ..inputs.json_files import parse_json
-from ..inputs.paths import input_file
-from .config import ALGORITHMS, algorithm_class
+from ...inputs.errors import FieldError
+from ...inputs.json_files import parse_json
+from ...inputs.paths import input_file
+from ..config import ALGORITHMS, algorithm_class
 
 #: The most a model's members may take unpacked, and its ``data`` member (the hyperparameters and spaces as
 #: JSON; a few hundred kB); the shipped agent takes 2 MB in all.
@@ -136,8 +136,8 @@ def load_model_file(path, algorithm: str, **kwargs):
     ``load`` (with ``env`` rollout workers, a model that collects from them). What SB3 still finds wrong, and
     weights that are not all finite (which would act as a torch error printing the tensors), are a
     :class:`ModelFileError` naming the file."""
-    from .callbacks import first_non_finite
-    from .rollout_workers import algorithm_for
+    from ..callbacks import first_non_finite
+    from ..rollout_workers import algorithm_for
 
     path = check_model_file(path, algorithm)
     try:

@@ -1,0 +1,106 @@
+"""The run-folder type itself (:class:`~emmi_gym.training.run_folders.RunFolder`): a new run into a folder in use is
+refused, overwriting removes the run's files and nothing else, a resumed run must bring its own configuration,
+and the run goes on from its newest checkpoint that loads, a damaged one skipped."""
+
+from dataclasses import replace
+
+import pytest
+from test_training import config_dict
+
+from emmi_gym.training.config import parse_agent_config
+from emmi_gym.training.run_folders import RunError, RunFolder
+from emmi_gym.training.train import make_vec_env, model_of
+
+PPO_SMALL = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
+
+
+@pytest.fixture(scope="module")
+def config():
+    return parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=64, checkpoint_freq=16))
+
+
+@pytest.fixture(scope="module")
+def model(config):
+    """A fresh (untrained) model of ``config``, saved as a run's checkpoints are."""
+    env = make_vec_env(config, 1, config.seed, "dummy")
+    try:
+        yield model_of(config, env)
+    finally:
+        env.close()
+
+
+def save(model, folder: RunFolder, *decisions: int) -> None:
+    """``model`` saved as the checkpoints of ``folder`` at ``decisions``."""
+    folder.checkpoint_dir.mkdir(parents=True, exist_ok=True)
+    for count in decisions:
+        model.save(folder.checkpoint_path(count))
+
+
+def test_a_new_run_is_created_in_an_empty_or_missing_folder(tmp_path, config):
+    folder = RunFolder(tmp_path / "run")
+    start = folder.plan(config)
+    assert start.model is None and not start.overwrite and folder.entries() == []  # nothing written by the checks
+    folder.write_config(config)
+    assert folder.entries() == ["config.yaml"] and folder.config().as_yaml_dict() == config.as_yaml_dict()
+    assert RunFolder.config_of_model(folder.checkpoint_path(16)).source == str(folder.config_path)  # the run above
+    assert folder.record() is None and folder.checkpoints() == [] and folder.latest_checkpoint() is None
+
+
+def test_a_folder_that_holds_anything_is_refused_unless_overwritten(tmp_path, config):
+    (tmp_path / "notes.txt").write_text("mine")
+    folder = RunFolder(tmp_path)
+    with pytest.raises(RunError, match=rf"{tmp_path} is not empty \(it holds notes\.txt\): a new run would overwrite "
+                                       r"what is there; continue the run in it with --resume, replace it with "
+                                       r"--overwrite, or give another --out"):
+        folder.plan(config)
+    with pytest.raises(RunError, match=r"--resume: .* holds no run to continue \(no config\.yaml; the folder holds "
+                                       r"notes\.txt\)"):
+        folder.plan(config, resume=True)
+    with pytest.raises(RunError, match="give one of them"):
+        folder.plan(config, resume=True, overwrite=True)
+    assert folder.plan(config, overwrite=True).overwrite
+
+
+def test_overwriting_removes_the_run_s_files_and_nothing_else(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)
+    save(model, folder, 16)
+    (tmp_path / "tb").mkdir()
+    (tmp_path / "notes.txt").write_text("mine")
+    folder.clear()
+    assert folder.entries() == ["notes.txt"]
+
+
+def test_an_input_among_the_files_overwriting_removes_is_refused(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    save(model, folder, 16)
+    with pytest.raises(RunError, match=rf"--init-from {folder.checkpoint_path(16)} is a file of the run in "
+                                       rf"{tmp_path}, which --overwrite would remove before it is read"):
+        folder.plan(config, overwrite=True, init_from=folder.checkpoint_path(16))
+    assert folder.checkpoints() == [(16, folder.checkpoint_path(16))]
+
+
+def test_resume_needs_the_run_s_own_configuration_but_its_budget_and_schedules(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)
+    save(model, folder, 16)
+    more = replace(config, total_timesteps=128, checkpoint_freq=32, source="more.yaml")
+    start = folder.plan(more, resume=True)
+    assert start.model == folder.checkpoint_path(16) and start.init_from is None
+    other = replace(config, seed=4, source="other.yaml")
+    with pytest.raises(RunError, match=rf"--resume: other\.yaml is not the configuration of the run in {tmp_path} "
+                                       rf"\({folder.config_path}\): seed: 3 in the run, 4 in other\.yaml"):
+        folder.plan(other, resume=True)
+    assert folder.differences(other) == {"seed": (3, 4)}
+
+
+def test_the_latest_loadable_checkpoint_skips_a_damaged_one(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)
+    save(model, folder, 16, 32)
+    folder.checkpoint_path(48).write_bytes(folder.checkpoint_path(32).read_bytes()[:-200])  # cut short by a kill
+    assert [decisions for decisions, _ in folder.checkpoints()] == [16, 32, 48]
+    with pytest.warns(UserWarning, match=r"skipping the damaged checkpoint .*model_48_steps\.zip"):
+        assert folder.latest_checkpoint(config.algorithm) == folder.checkpoint_path(32)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
+        assert folder.plan(config, resume=True).model == folder.checkpoint_path(32)
