@@ -16,13 +16,13 @@ from pathlib import Path
 import gymnasium as gym
 import pytest
 import yaml
+from helpers import ROOT
 
 import emmi_gym
 import emmi_gym.cli
 from emmi_gym.env.config import REWARD_SCALES, REWARDS
 from emmi_gym.env.registration import ENV_IDS
 
-ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 
 gym.register_envs(emmi_gym)
