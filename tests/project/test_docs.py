@@ -284,6 +284,7 @@ def test_contributing_names_files_commands_and_markers_that_exist(pytestconfig):
     assert "slow" in markers and "@pytest.mark.slow" in text, "CONTRIBUTING.md's slow marker is not pytest's"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", ["README.md", "docs/training.md"])
 def test_the_pretrained_agents_snippets_run_as_written_in_a_fresh_interpreter(page):
     """What a new user copies: ``import emmi_gym`` alone must make ``emmi_gym.pretrained`` available."""

@@ -9,6 +9,8 @@ from emmi_gym.experiments.replay import replay
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.slam import RBPFConfig
 
+pytestmark = pytest.mark.slow  # replays the first Intel loop (module fixture, 2.7 s), which both tests share
+
 LOG = DATA / "intel-first-loop.log.gz"
 BACK_AT_START = 98  # keyframe at which the corrected path first returns to the start
 

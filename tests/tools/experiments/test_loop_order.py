@@ -27,6 +27,7 @@ from emmi_gym.world.presets import odometry_config
 TINY = dict(particles=3, max_decisions=8)
 
 
+@pytest.mark.slow
 def test_loop_order_passes_the_checker_and_replays_bit_for_bit():
     env = gym.make("emmi_gym/LoopOrder-v1", **TINY)
     check_env(env.unwrapped, skip_render_check=True)
@@ -64,6 +65,7 @@ def test_the_ab_options_reach_the_env():
     assert env.slam_config.resample_threshold == 1.0 and env.slam_config.particles == 5
 
 
+@pytest.mark.slow
 def test_ab_plays_loop_order_and_writes_the_runs(tmp_path):
     out = tmp_path / "ab"
     assert main(["ab", "--env-id", "emmi_gym/LoopOrder-v1", "--seeds", "2", "--particles", "3",
@@ -81,6 +83,7 @@ def write_sweep(path, grid="  particles: [2, 3]\n", extra=""):
     return path
 
 
+@pytest.mark.slow
 def test_a_sweep_writes_its_table_and_figure_and_resumes(tmp_path, capsys):
     sweep_file, out = write_sweep(tmp_path / "sweep.yaml"), tmp_path / "out"
     argv = ["ab", "--sweep", str(sweep_file), "--workers", "2", "--quiet", "--out", str(out)]
