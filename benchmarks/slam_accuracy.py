@@ -1,4 +1,4 @@
-"""Accuracy of the RBPF round the loop_corridor loop, over seeds (the full version of tests/test_slam.py).
+"""Accuracy of the RBPF round the loop_corridor loop, over seeds (the full version of tests/slam/test_slam.py).
 
     python benchmarks/slam_accuracy.py [--seeds 20] [--particles 15] [--slam '{"logodds_free": -0.7}']
         [--laser '{"preset": "sick_lms200", "max_range": 8.0}'] [--odometry poor]

@@ -5,7 +5,7 @@ memory) counted 1/n in each, so the sum is what the tree took of the machine's m
 also names the tests that held the most (a plugin, ``_current_test.py``, says which test is running).
 
     python benchmarks/suite_memory.py                       # python -m pytest -q
-    python benchmarks/suite_memory.py -- python -m pytest tests/test_env.py -q
+    python benchmarks/suite_memory.py -- python -m pytest tests/env/test_env.py -q
 """
 
 from __future__ import annotations

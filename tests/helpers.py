@@ -1,9 +1,16 @@
-"""Assertions shared by the test modules."""
+"""Assertions and paths shared by the test modules (``pythonpath = ["tests"]`` in pyproject.toml makes this
+module importable from every folder of tests/)."""
+
+from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
 from emmi_gym.world import rasterise
+
+#: The repository's root, and the data files of the tests, wherever a test file sits under tests/.
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "tests" / "data"
 
 
 def assert_same(a, b) -> None:

@@ -5,7 +5,7 @@
 
 Each field is declared with ``emmi_gym.inputs.validation.option(default, check, help)``: the
 table shows its name, type, default, what the check accepts (the bounds) and the help line.
-tests/test_docs.py fails when the file differs from what this script writes.
+tests/project/test_docs.py fails when the file differs from what this script writes.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Numba kernels behind the certainty functions (single thread, cached).
 
-Each kernel has a plain NumPy twin in ``tests/test_certainty.py``. Grids arrive
+Each kernel has a plain NumPy twin in ``tests/certainty/test_certainty.py``. Grids arrive
 flattened as (M, N).
 """
 

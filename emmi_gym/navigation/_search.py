@@ -8,7 +8,7 @@ cells), and a cell of infinite cost is never entered. Given a goal it is A* (Har
 Raphael 1968) with the octile distance as heuristic, admissible and consistent because no cell costs
 less than 1 per cell crossed, and it stops when the goal is settled: a replan costs the part of the
 map between the robot and its target, not the whole window. Each kernel has a plain-Python twin in
-``tests/test_search.py``.
+``tests/navigation/test_search.py``.
 """
 
 from __future__ import annotations

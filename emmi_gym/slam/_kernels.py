@@ -1,6 +1,6 @@
 """Numba kernels of the RBPF's maps: scan rays and their insertion (matching: ``_matching``).
 
-Hot loops only; each has a plain-Python twin in ``tests/test_slam_kernels.py``.
+Hot loops only; each has a plain-Python twin in ``tests/slam/test_slam_kernels.py``.
 Grid coordinates: ``g = (world - origin) / resolution``; cell (row, col) = (floor(gy), floor(gx)).
 Maps are int8 codes of log-odds (see ``sensor_model``): > 0 occupied, < 0 free, 0 unknown.
 Beside them, ``hits`` (M, H, W, 3) int8 keeps for each cell the mean position of the beam

@@ -2,7 +2,7 @@
 
 They give what ``pymunk.Space.segment_query_first`` gives for a zero-radius query
 against ``pymunk.Segment`` shapes, for all beams of a scan in one call (pymunk costs
-~10 us of Python per query). ``tests/test_world.py`` checks them against pymunk.
+~10 us of Python per query). ``tests/world/test_world.py`` checks them against pymunk.
 
 The capsules are bucketed once in a uniform grid (:func:`capsule_grid`); each beam walks
 the grid's cells in the order it crosses them (Amanatides and Woo, "A fast voxel

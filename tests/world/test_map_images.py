@@ -7,6 +7,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from helpers import ROOT
 from PIL import Image
 from scipy import ndimage
 
@@ -15,7 +16,7 @@ from emmi_gym.world import FREE, OCCUPIED, UNKNOWN, WorldFileError, load_world, 
 from emmi_gym.world.images import dungeon_occupancy, map_server_occupancy
 from emmi_gym.world.map_sets import WorldSource, builtin_map_sets, map_set_files
 
-PLANS = Path(__file__).resolve().parents[1] / "emmi_gym" / "worlds_data" / "dungeon_maps"
+PLANS = ROOT / "emmi_gym" / "worlds_data" / "dungeon_maps"
 PLAN = PLANS / "test" / "img_10011.png"
 
 

@@ -47,6 +47,7 @@ def test_each_extra_is_named_by_its_modules():
     assert missing_extra(ModuleNotFoundError("No module named 'scipy'", name="scipy"), "x") is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv", [
     ("evaluate", "--pretrained", "loop_order_emmi", "--episodes", "3"),
     ("train", "agents/ppo_emmi.yaml", "--timesteps", "8", "--out", "{tmp}/run"),
@@ -62,6 +63,7 @@ def test_commands_without_the_train_extra_print_the_install_line(argv, tmp_path)
     assert not (tmp_path / "run").exists()  # refused before anything was written
 
 
+@pytest.mark.slow
 def test_ray_option_without_ray_names_the_ray_extra(tmp_path):
     result = cli_without("ray", "train", "agents/ppo_emmi.yaml", "--timesteps", "8", "--ray", "local",
                          "--out", str(tmp_path / "run"))

@@ -37,6 +37,7 @@ def config_dict(algorithm, env_extra=None, hyper=None, timesteps=96, env_id="emm
             "eval": {"freq": 64, "episodes": 1, "seed": 500}, "checkpoint_freq": 48, **extra}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", list(ALGORITHMS))
 def test_each_algorithm_trains_saves_resumes_and_evaluates(algorithm, tmp_path):
     env_extra, hyper = ALGORITHMS[algorithm]
@@ -58,6 +59,7 @@ def test_each_algorithm_trains_saves_resumes_and_evaluates(algorithm, tmp_path):
     assert set(GROUND_TRUTH) <= set(rows[0])
 
 
+@pytest.mark.slow
 def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
     data = config_dict("MaskablePPO", {"max_decisions": 3}, {"n_steps": 8, "batch_size": 8, "n_epochs": 1},
                        timesteps=8, env_id="emmi_gym/LoopCorridor-v1")
@@ -91,6 +93,7 @@ def interrupt_training_at(monkeypatch, timesteps: int):
     return lambda: monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", original)
 
 
+@pytest.mark.slow
 def test_eval_freq_zero_trains_with_checkpoints_and_no_periodic_evaluation(tmp_path):
     config = dict(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}),
                   eval={"freq": 0, "episodes": 1, "seed": 500})
@@ -99,6 +102,7 @@ def test_eval_freq_zero_trains_with_checkpoints_and_no_periodic_evaluation(tmp_p
     assert not (tmp_path / "eval_ground_truth.csv").exists() and not (tmp_path / "eval").exists()
 
 
+@pytest.mark.slow
 def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     run_on = interrupt_training_at(monkeypatch, 40)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
@@ -115,6 +119,7 @@ def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     assert record["wall_seconds"] == pytest.approx(stopped.wall_seconds + finished.wall_seconds, abs=0.5)
 
 
+@pytest.mark.slow
 def test_a_resumed_run_checkpoints_and_evaluates_on_the_schedule_of_an_uninterrupted_one(tmp_path, monkeypatch):
     run_on = interrupt_training_at(monkeypatch, 40)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
@@ -128,6 +133,7 @@ def test_a_resumed_run_checkpoints_and_evaluates_on_the_schedule_of_an_uninterru
         assert [int(float(row["timesteps"])) for row in csv.DictReader(f)] == [32, 64, 96]
 
 
+@pytest.mark.slow
 def test_a_run_extended_and_interrupted_resumes_from_its_newest_checkpoint_not_its_old_model(tmp_path,
                                                                                              monkeypatch):
     hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
@@ -151,6 +157,7 @@ def test_a_run_extended_and_interrupted_resumes_from_its_newest_checkpoint_not_i
     assert [(part["start"], part["end"]) for part in record["parts"]] == [(0, 32), (32, 56), (56, end)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("whole_group, vec_env", [(False, "subproc"), (True, "subproc"), (True, "workers")],
                          ids=["kill -INT main process", "Ctrl-C (process group)", "Ctrl-C, rollout workers"])
 def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, vec_env, tmp_path):
@@ -211,6 +218,7 @@ def sigint_as_in_a_terminal():
     signal.signal(signal.SIGINT, previous)
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monkeypatch, sigint_as_in_a_terminal):
     """A Ctrl-C that arrives while numba loads a kernel raises KeyboardInterrupt inside llvmlite's ctypes
     callback, which drops it (printing a traceback): training went on (the other rare failure of the
@@ -251,6 +259,7 @@ def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monk
     assert reported == [] and sys.unraisablehook is report  # not printed; the hook restored
 
 
+@pytest.mark.slow
 def test_an_llvmlite_object_the_interrupt_left_half_built_is_not_printed_when_its_traceback_is_freed(
         tmp_path, monkeypatch):
     """The rare failure of the SIGINT test in CI: a Ctrl-C that struck while an llvmlite object was
@@ -314,6 +323,7 @@ def test_a_ctrl_c_while_the_kernel_threads_start_does_not_hang_the_exit():
     assert done.returncode == 0 and done.stdout.strip() == "interrupted", done.stderr[-2000:]
 
 
+@pytest.mark.slow
 def test_resume_skips_a_checkpoint_cut_short_by_a_kill(tmp_path):
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
                                             timesteps=64, checkpoint_freq=32))
@@ -458,10 +468,12 @@ def test_benchmark_refuses_waypoint_baselines_in_velocity_mode(tmp_path):
         run_benchmark(config, ["emmi"], range(1), 16, 1, ["frontier"], tmp_path, progress=False)
 
 
+@pytest.mark.slow
 def test_benchmark_in_local_worker_processes(tmp_path):
     _tiny_benchmark(tmp_path, workers=2)
 
 
+@pytest.mark.slow
 def test_benchmark_on_a_local_ray_instance(tmp_path):
     pytest.importorskip("ray")
     local = _tiny_benchmark(tmp_path / "local", workers=1)
@@ -469,6 +481,7 @@ def test_benchmark_on_a_local_ray_instance(tmp_path):
     assert [r["coverage"] for r in on_ray] == [r["coverage"] for r in local]  # the same runs, wherever they ran
 
 
+@pytest.mark.slow
 def test_benchmark_command_trains_for_the_configurations_budget_by_default(tmp_path, capsys):
     path = tmp_path / "agent.yaml"
     path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
@@ -481,6 +494,7 @@ def test_benchmark_command_trains_for_the_configurations_budget_by_default(tmp_p
         "total_timesteps"] == 16
 
 
+@pytest.mark.slow
 def test_a_benchmark_extended_to_a_larger_budget_and_stopped_early_trains_on_when_run_again(tmp_path):
     path = tmp_path / "agent.yaml"
     path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
@@ -515,6 +529,7 @@ def test_saved_decisions_reads_a_model_s_count_and_names_a_file_without_one(tmp_
         saved_decisions(tmp_path / "text.zip")
 
 
+@pytest.mark.slow
 def test_benchmark_agents_start_from_the_init_from_model(tmp_path, capsys):
     path = tmp_path / "agent.yaml"
     path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
@@ -538,6 +553,7 @@ def test_benchmark_agents_start_from_the_init_from_model(tmp_path, capsys):
     assert not (tmp_path / "other" / "runs").exists()
 
 
+@pytest.mark.slow
 def test_train_and_evaluate_commands(tmp_path, capsys):
     path = tmp_path / "agent.yaml"
     path.write_text(yaml.safe_dump(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1})))
@@ -595,6 +611,7 @@ def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(poli
     assert "closed_loop_first" not in explore.step(0)[4]   # no decision point: nothing to report
 
 
+@pytest.mark.slow
 def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisions(tmp_path):
     import torch
     from stable_baselines3 import PPO
@@ -619,6 +636,7 @@ def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisio
               tmp_path / "other", progress=False, init_from=first.model_path)
 
 
+@pytest.mark.slow
 def test_a_run_from_init_from_interrupted_and_resumed_still_names_its_start(tmp_path, monkeypatch):
     hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
     first = train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=32)), tmp_path / "first",

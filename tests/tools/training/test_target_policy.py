@@ -80,6 +80,7 @@ def test_a_slot_scores_its_row_wherever_it_lands():
     np.testing.assert_allclose(probs[mask], 1 / mask.sum(), atol=0.01)
 
 
+@pytest.mark.slow
 def test_it_learns_to_follow_a_target_from_slot_to_slot():
     env = FindTheRevisit()
     model = policy_on(env)

@@ -182,6 +182,7 @@ def test_a_damaged_training_record_names_the_file_and_field(tmp_path, content, e
         RunFolder(tmp_path).record()
 
 
+@pytest.mark.slow
 def test_a_damaged_training_record_stops_training_before_it_starts(tmp_path):
     config = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},
               "algorithm": "MaskablePPO", "policy": "MultiInputPolicy",
@@ -408,6 +409,7 @@ def test_episodes_are_made_when_asked_for():
     assert [seed for _, seed in on_set] == [5, 5, 5] and len({world for world, _ in on_set}) == 3
 
 
+@pytest.mark.slow
 def test_jobs_from_a_generator_run_in_worker_processes():
     from emmi_gym.concurrency.parallel import run_in_processes
 

@@ -103,6 +103,7 @@ def replaying(initial: dict, rollouts: list):
     return hook
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("base", [MASKED, VELOCITY], ids=["MaskablePPO, masks, semi-Markov", "PPO, Box actions"])
 def test_the_learner_fills_the_buffer_sb3_collects_for_the_same_actions(base):
     initial, from_workers = collect(agent(base), "workers", 2)
@@ -136,6 +137,7 @@ def ray():
     ray.shutdown()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("policy_lag", [0, 1])
 def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray, policy_lag):
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
@@ -143,6 +145,7 @@ def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray, policy_l
     same_rollouts(collect(data, "workers", 3)[1], collect(data, "ray_workers", 3)[1])
 
 
+@pytest.mark.slow
 def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray):
     """Two nodes of one CPU each, as Ray's own tests make a cluster on one machine: the two workers (one CPU
     each) can only run one on each node."""
@@ -166,6 +169,7 @@ def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray):
         cluster.shutdown()
 
 
+@pytest.mark.slow
 def test_a_worker_that_stops_is_an_error_naming_it_not_a_hang():
     config = parse_agent_config(agent(VELOCITY))
     workers = make_vec_env(config, 2, 0, "workers")
@@ -178,6 +182,7 @@ def test_a_worker_that_stops_is_an_error_naming_it_not_a_hang():
         workers.close()
 
 
+@pytest.mark.slow
 def test_training_with_workers_stops_on_ctrl_c_resumes_and_starts_from_another_model(tmp_path, monkeypatch):
     from sb3_contrib import MaskablePPO
     from test_training import interrupt_training_at
@@ -195,6 +200,7 @@ def test_training_with_workers_stops_on_ctrl_c_resumes_and_starts_from_another_m
     assert more.timesteps >= 48 and len(evaluate_model(more.model_path, episodes=1)) == 1
 
 
+@pytest.mark.slow
 def test_with_a_policy_lag_each_rollout_is_played_with_the_weights_one_update_before():
     """policy_lag 1: the workers play the next fragments while the learner updates, so the first two rollouts
     are played with the initial weights and the third with the weights after the first update; the buffer

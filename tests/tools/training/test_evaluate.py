@@ -33,6 +33,7 @@ def read_rows(path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow
 def test_evaluate_plays_the_model_and_the_baselines_on_the_same_episodes(tiny_agent, tmp_path, capsys):
     out = tmp_path / "eval"
     assert main(["evaluate", str(tiny_agent), "--episodes", "2", "--seed", "7", "--baselines", "frontier", "random",
@@ -50,6 +51,7 @@ def test_evaluate_plays_the_model_and_the_baselines_on_the_same_episodes(tiny_ag
     assert float(played["ate"]) == alone["ate"] and float(played["coverage"]) == alone["coverage"]
 
 
+@pytest.mark.slow
 def test_evaluate_on_a_map_set_plays_its_first_maps(tiny_agent, tmp_path, capsys):
     out = tmp_path / "eval"
     assert main(["evaluate", str(tiny_agent), "--world", "dungeon_maps/test", "--episodes", "2",
@@ -58,6 +60,7 @@ def test_evaluate_on_a_map_set_plays_its_first_maps(tiny_agent, tmp_path, capsys
     assert sorted({r["world"] for r in read_rows(out / "episodes.csv")}) == sorted(plans)
 
 
+@pytest.mark.slow
 def test_evaluate_refuses_unknown_baselines_and_agents(tiny_agent, capsys):
     for argv, expected in [([str(tiny_agent), "--baselines", "nearest"], "--baselines: unknown ['nearest']"),
                            (["--pretrained", "nope"], "no pretrained agent 'nope'"),
@@ -68,6 +71,7 @@ def test_evaluate_refuses_unknown_baselines_and_agents(tiny_agent, capsys):
         assert stop.value.code == 2 and expected in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", pretrained.names())
 def test_each_shipped_agent_loads_in_one_line_and_picks_a_valid_target(name):
     model = pretrained.load(name)
@@ -86,6 +90,7 @@ def test_the_package_ships_the_reference_agents():
     assert {"loop_corridor_emmi", "loop_order_emmi", "explore_plans_emmi"} <= set(pretrained.names())
 
 
+@pytest.mark.slow
 def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path, capsys):
     from emmi_gym.experiments.report import read_csv
     from emmi_gym.training.checkpoint_scores import score_checkpoints

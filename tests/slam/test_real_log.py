@@ -1,15 +1,17 @@
 """The RBPF on a real laser log: the first loop of the Intel Research Lab (180 beams, 0.05 m cells)."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import DATA
 
 from emmi_gym.experiments.replay import replay
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.slam import RBPFConfig
 
-LOG = Path(__file__).parent / "data" / "intel-first-loop.log.gz"
+pytestmark = pytest.mark.slow  # replays the first Intel loop (module fixture, 2.7 s), which both tests share
+
+LOG = DATA / "intel-first-loop.log.gz"
 BACK_AT_START = 98  # keyframe at which the corrected path first returns to the start
 
 

@@ -44,6 +44,7 @@ def paired(runs, name):
     return column(runs, name, "A") - column(runs, name, "B")
 
 
+@pytest.mark.slow
 def test_every_run_reaches_both_goals_in_order(experiment):
     _, runs = experiment
     assert len(runs) == 2 * SEEDS
@@ -52,6 +53,7 @@ def test_every_run_reaches_both_goals_in_order(experiment):
         assert int(r["decision_update"]) < int(r["first_goal_update"]) < int(r["second_goal_update"])
 
 
+@pytest.mark.slow
 def test_emmi_rises_after_closing_the_loop_and_not_after_exploring(experiment):
     _, runs = experiment
     a, b = column(runs, "emmi_change", "A"), column(runs, "emmi_change", "B")
@@ -61,18 +63,21 @@ def test_emmi_rises_after_closing_the_loop_and_not_after_exploring(experiment):
     assert np.mean(b) < 0.02, b                  # entering the new area does not (full run: +0.007; here +0.010)
 
 
+@pytest.mark.slow
 def test_pose_entropy_falls_under_a_and_not_under_b(experiment):
     _, runs = experiment
     a, b = column(runs, "pose_entropy_change", "A"), column(runs, "pose_entropy_change", "B")
     assert np.mean(a) < 0 < np.mean(b), (a, b)
 
 
+@pytest.mark.slow
 def test_joint_entropy_does_not_prefer_closing_the_loop(experiment):
     """The paper's point: the joint entropy falls when exploring, whatever the pose certainty."""
     _, runs = experiment
     assert np.mean(column(runs, "joint_entropy_change", "B")) <= np.mean(column(runs, "joint_entropy_change", "A"))
 
 
+@pytest.mark.slow
 def test_outputs_are_complete(experiment):
     out, runs = experiment
     for name in ("ab_updates.csv", "ab_runs.csv", "ab_summary.md", "ab_fig6_metrics.png", "ab_fig6_maps.png"):
@@ -89,6 +94,7 @@ def test_outputs_are_complete(experiment):
     assert {"seed", "arm", "update", "phase", "emmi", "pose_entropy", "joint_entropy", "neff"} <= set(header)
 
 
+@pytest.mark.slow
 def test_a_worker_run_is_the_run_of_this_process(experiment):
     out, _ = experiment
     with open(out / "ab_updates.csv") as f:
@@ -99,6 +105,7 @@ def test_a_worker_run_is_the_run_of_this_process(experiment):
                for a, b in zip(logged, run.rows, strict=True))
 
 
+@pytest.mark.slow
 def test_demo_writes_the_figures_and_prints_the_summary(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--quiet"]) == 0
     printed = capsys.readouterr().out

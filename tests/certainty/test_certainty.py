@@ -307,6 +307,7 @@ def test_bad_log_weights_and_tolerance():
         C.pose_entropy(np.zeros((3, 2)), np.ones(3))
 
 
+@pytest.mark.slow
 @given(st.integers(1, 5), st.integers(1, 300), st.sampled_from([np.int8, np.uint8, np.int16, np.uint16]),
        st.booleans(), st.integers(0, 2**31))
 def test_integer_codes_with_lut_match_probabilities(m, n, dtype, narrow, seed):

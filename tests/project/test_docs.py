@@ -16,13 +16,13 @@ from pathlib import Path
 import gymnasium as gym
 import pytest
 import yaml
+from helpers import ROOT
 
 import emmi_gym
 import emmi_gym.cli
 from emmi_gym.env.config import REWARD_SCALES, REWARDS
 from emmi_gym.env.registration import ENV_IDS
 
-ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 
 gym.register_envs(emmi_gym)
@@ -284,6 +284,7 @@ def test_contributing_names_files_commands_and_markers_that_exist(pytestconfig):
     assert "slow" in markers and "@pytest.mark.slow" in text, "CONTRIBUTING.md's slow marker is not pytest's"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("page", ["README.md", "docs/training.md"])
 def test_the_pretrained_agents_snippets_run_as_written_in_a_fresh_interpreter(page):
     """What a new user copies: ``import emmi_gym`` alone must make ``emmi_gym.pretrained`` available."""

@@ -65,6 +65,7 @@ def run(finished, tmp_path):
     return tmp_path / "run", finished[1]
 
 
+@pytest.mark.slow
 def test_resume_with_another_configuration_is_refused_before_anything_is_written(run, tmp_path, capsys):
     folder, _ = run
     before = {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()}
@@ -91,6 +92,7 @@ def test_resume_with_another_configuration_is_refused_before_anything_is_written
     assert code == 0, out
 
 
+@pytest.mark.slow
 def test_a_new_run_into_a_folder_holding_one_is_refused_and_overwrite_starts_afresh(run, capsys):
     folder, config = run
     (folder / "model.zip").unlink()  # an interrupted run: checkpoints and a record of its wall time
@@ -109,6 +111,7 @@ def test_a_new_run_into_a_folder_holding_one_is_refused_and_overwrite_starts_afr
     assert (folder / "notes.txt").read_text() == "mine"  # what a run does not write stays
 
 
+@pytest.mark.slow
 def test_clone_into_a_folder_that_is_not_empty_is_refused_unless_overwrite(tmp_path, capsys):
     (tmp_path / "agent.yaml").write_text(yaml.safe_dump(CLONE_CONFIG))
     out = tmp_path / "bc"
@@ -136,6 +139,7 @@ def test_clone_into_a_folder_that_is_not_empty_is_refused_unless_overwrite(tmp_p
     assert zipfile.is_zipfile(out / "model.zip") and (out / "clone.yaml").is_file()
 
 
+@pytest.mark.slow
 def test_init_from_is_checked_against_the_configuration_and_says_what_will_train(finished, tmp_path, capsys):
     folder, _ = finished
     model = folder / "model.zip"
@@ -199,6 +203,7 @@ def poison_the_third_update(monkeypatch):
     monkeypatch.setattr(torch.optim.Adam, "step", poisoned)
 
 
+@pytest.mark.slow
 def test_training_stops_at_the_first_non_finite_weight_and_keeps_the_last_good_checkpoint(tmp_path, monkeypatch):
     config = parse_agent_config(
         config_dict(
@@ -217,6 +222,7 @@ def test_training_stops_at_the_first_non_finite_weight_and_keeps_the_last_good_c
     assert yaml.safe_load((tmp_path / "training.yaml").read_text())["timesteps"] == 32
 
 
+@pytest.mark.slow
 def test_a_model_with_non_finite_weights_is_refused_as_a_start(finished, tmp_path, capsys):
     model = PPO.load(finished[0] / "model.zip")
     with torch.no_grad():
@@ -227,6 +233,7 @@ def test_a_model_with_non_finite_weights_is_refused_as_a_start(finished, tmp_pat
     assert code == 2 and f"{tmp_path / 'diverged.zip'}: expected a model whose weights are all finite" in err, err
 
 
+@pytest.mark.slow
 def test_cloning_stops_at_a_non_finite_loss_and_writes_no_model(tmp_path):
     config = parse_agent_config(CLONE_CONFIG)
     space = gym.make(config.env_id, **config.env_kwargs).observation_space
@@ -242,6 +249,7 @@ def test_cloning_stops_at_a_non_finite_loss_and_writes_no_model(tmp_path):
     assert not (tmp_path / "model.zip").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("obs_size", [36, 256])
 @pytest.mark.parametrize(
     "algorithm, policy, env_id, env_kwargs",
@@ -296,6 +304,7 @@ def assert_record_adds_up(record: dict, decisions: int) -> None:
     assert record["wall_seconds"] == pytest.approx(sum(p["wall_seconds"] for p in parts), abs=1e-6)
 
 
+@pytest.mark.slow
 def test_a_run_killed_at_random_moments_resumes_to_a_loadable_model_whose_record_adds_up(tmp_path):
     data = config_dict(
         "PPO", hyper=PPO_SMALL, timesteps=10**6, checkpoint_freq=16, eval={"freq": 0, "episodes": 1, "seed": 500}
@@ -339,6 +348,7 @@ def test_a_run_killed_at_random_moments_resumes_to_a_loadable_model_whose_record
     assert_record_adds_up(yaml.safe_load((folder / "training.yaml").read_text()), model.num_timesteps)
 
 
+@pytest.mark.slow
 def test_a_run_from_a_model_interrupted_and_resumed_records_each_part(finished, tmp_path, monkeypatch):
     from test_training import interrupt_training_at
 

@@ -9,6 +9,8 @@ from helpers import assert_same
 from emmi_gym.training.config import parse_agent_config
 from emmi_gym.training.train import make_vec_env, train
 
+pytestmark = pytest.mark.slow  # each test starts a local Ray instance (module fixture) and trains or steps in actors
+
 ray = pytest.importorskip("ray")
 
 #: A small generated world whose 40-step episodes end inside the test, so automatic resets are compared too.

@@ -42,6 +42,7 @@ def loop_runs():
     return [loop_run(seed) for seed in SEEDS]
 
 
+@pytest.mark.slow
 def test_accuracy_after_the_loop_closes(loop_runs):
     """15 particles, after the loop closed: the best path's ATE (frames coincide at the start, as
     for dead reckoning) is < 0.5 m and >= 3x better than dead reckoning's; the best map, registered
@@ -72,6 +73,7 @@ def _closing_update(rec, steps, angles, max_range, geometry):
     return close
 
 
+@pytest.mark.slow
 def test_loop_closure_shows_in_emmi_and_neff(loop_runs):
     """Fig. 6: EMMI higher a few updates after the loop closes; Neff drops there."""
     emmi_up = neff_drop = 0
@@ -92,6 +94,7 @@ def corridor_env_runs():
     return [(laser,) + loop_run(seed, laser=laser, odometry=odometry) for seed in SEEDS]
 
 
+@pytest.mark.slow
 def test_hypotheses_survive_the_open_loop_and_collapse_when_it_closes(corridor_env_runs):
     """The paper's Fig. 6 with LoopCorridor-v1's sensors (the fast version of ``benchmarks/slam_accuracy.py
     --laser '{"preset": "sick_lms200", "max_range": 8.0}' --odometry poor``, whose 20 seeds give 15, 20
@@ -108,6 +111,7 @@ def test_hypotheses_survive_the_open_loop_and_collapse_when_it_closes(corridor_e
     assert none_before >= 4 and drop == len(SEEDS) and rise >= 4, (none_before, drop, rise)
 
 
+@pytest.mark.slow
 def test_metrics_are_those_of_the_certainty_functions(loop_runs):
     _, _, slam, rows, _, _ = loop_runs[0]
     last = rows[-1]

@@ -90,6 +90,7 @@ def test_bad_discount_unit_is_a_clear_error(change, field, expected):
     assert error.value.field == field and expected in str(error.value)
 
 
+@pytest.mark.slow
 def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
     from sb3_contrib import MaskablePPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -112,6 +113,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
     np.testing.assert_allclose(model.rollout_buffer.discounts[:, 0], GAMMA ** (durations / UNIT), rtol=1e-5)
 
 
+@pytest.mark.slow
 def test_train_command_uses_the_configured_discount_unit(tmp_path):
     from emmi_gym.training.evaluate import evaluate_model
 

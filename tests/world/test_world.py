@@ -2,13 +2,12 @@
 
 import copy
 import math
-from pathlib import Path
 
 import numpy as np
 import pymunk
 import pytest
 import yaml
-from helpers import independent_loops
+from helpers import ROOT, independent_loops
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -21,7 +20,7 @@ from emmi_gym.world.odometry import OdometryNoise, noisy_motion
 from emmi_gym.world.simulator import RobotConfig, Simulator
 from emmi_gym.world.spec import ROBOT_RADIUS, WorldFileError
 
-PLANS = Path(__file__).resolve().parents[1] / "emmi_gym" / "worlds_data" / "dungeon_maps"
+PLANS = ROOT / "emmi_gym" / "worlds_data" / "dungeon_maps"
 
 BOX = {
     "name": "box",

@@ -28,6 +28,7 @@ frontier_action = FrontierPolicy()  # the nearest frontier (slot 0), else the fi
 # ------------------------------------------------------------------ registration and API
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("env_id", IDS)
 def test_check_env_passes_without_warnings(env_id):
     env = gym.make(env_id, render_mode="rgb_array", **SMALL)
@@ -161,6 +162,7 @@ def _trace_in_subprocess(queue):
     queue.put(pickle.dumps(run("emmi_gym/ExploreVelocity-v0", 3, 20, **SMALL)))
 
 
+@pytest.mark.slow
 def test_same_seed_same_episode_across_processes():
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
@@ -186,6 +188,7 @@ def test_pickled_and_copied_envs_continue_identically(env_id):
             assert_same(a, clone.step(action))
 
 
+@pytest.mark.slow
 def test_async_vector_env_and_sb3_subproc_spawn():
     envs = gym.make_vec("emmi_gym/ExploreVelocity-v0", num_envs=2, vectorization_mode="async", **SMALL)
     obs, _ = envs.reset(seed=0)
@@ -315,6 +318,7 @@ def episode_return(env, policy) -> tuple[float, dict, bool]:
     return total, info, terminated
 
 
+@pytest.mark.slow
 def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
     """Under the default (EMMI) reward, exploring to the coverage target earns more than standing
     still or spinning in place until the step budget runs out (the same budget for all three)."""

@@ -1,6 +1,7 @@
 """Behaviour cloning: demonstrations of a scripted policy, the fit, and the run that train --init-from continues."""
 
 import numpy as np
+import pytest
 import yaml
 
 from emmi_gym.cli import main
@@ -14,6 +15,7 @@ CONFIG = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "
           "total_timesteps": 8, "seed": 3, "eval": {"freq": 8, "episodes": 1, "seed": 500}}
 
 
+@pytest.mark.slow
 def test_demonstrations_record_every_decision_and_a_clone_learns_them(tmp_path):
     config = parse_agent_config(CONFIG)
     demos = collect_demonstrations(config, "close_loop_first", 2, 7, workers=1, progress=False)
@@ -33,6 +35,7 @@ def test_demonstrations_record_every_decision_and_a_clone_learns_them(tmp_path):
     assert agreement(model, demos) == 1.0  # six decisions, fitted
 
 
+@pytest.mark.slow
 def test_clone_command_writes_a_run_that_train_init_from_continues(tmp_path):
     (tmp_path / "agent.yaml").write_text(yaml.safe_dump(CONFIG))
     assert main(["clone", str(tmp_path / "agent.yaml"), "--policy", "frontier", "--episodes", "1", "--workers", "1",

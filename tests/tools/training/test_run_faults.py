@@ -37,6 +37,7 @@ def files_of(folder) -> dict:
 
 
 # ---------------------------------------------------------------- overwrite and its inputs
+@pytest.mark.slow
 def test_overwrite_refuses_an_input_among_the_files_it_would_remove(run, tmp_path, capsys):
     folder, config = run
     before = files_of(folder)
@@ -56,6 +57,7 @@ def test_overwrite_refuses_an_input_among_the_files_it_would_remove(run, tmp_pat
 
 
 # ---------------------------------------------------------------- resuming
+@pytest.mark.slow
 def test_resume_below_what_is_trained_is_refused_and_the_folder_kept(run, capsys):
     folder, config = run
     before = files_of(folder)
@@ -64,6 +66,7 @@ def test_resume_below_what_is_trained_is_refused_and_the_folder_kept(run, capsys
     assert files_of(folder) == before
 
 
+@pytest.mark.slow
 def test_resume_skips_a_damaged_model_for_the_newest_whole_checkpoint(run, capsys):
     folder, config = run
     with zipfile.ZipFile(folder / "model.zip") as archive:
@@ -77,6 +80,7 @@ def test_resume_skips_a_damaged_model_for_the_newest_whole_checkpoint(run, capsy
     assert code == 0 and f"continuing from {folder / 'checkpoints' / 'model_16_steps.zip'} (16 decisions)" in out
 
 
+@pytest.mark.slow
 def test_a_configuration_that_does_not_match_the_model_is_refused_before_anything_is_written(run, capsys):
     folder, config = run
     edited = yaml.safe_load((folder / "config.yaml").read_text())
@@ -89,6 +93,7 @@ def test_a_configuration_that_does_not_match_the_model_is_refused_before_anythin
     assert files_of(folder) == before
 
 
+@pytest.mark.slow
 def test_a_training_record_whose_parts_do_not_add_up_is_refused(run, capsys):
     folder, config = run
     record = yaml.safe_load((folder / "training.yaml").read_text())
@@ -153,6 +158,7 @@ def test_an_interrupted_benchmark_exits_130_and_reports_nothing(tmp_path, monkey
     assert RunFolder(tmp_path / "bench" / "runs" / "emmi_seed0").latest_checkpoint() is not None
 
 
+@pytest.mark.slow
 def test_ctrl_c_in_a_pool_stops_every_job_without_a_traceback(tmp_path):
     script = ("import time\nfrom emmi_gym.concurrency.parallel import run_in_processes\n"
               "try:\n    run_in_processes(time.sleep, [60] * 6, workers=2, progress=False)\n"
@@ -204,6 +210,7 @@ def test_a_worker_that_stops_or_dies_stops_the_run_naming_it_with_a_checkpoint_t
     assert not _worker_processes("rollout worker 1")  # stopped or not, every worker was ended
 
 
+@pytest.mark.slow
 def test_a_stalled_worker_is_named_within_its_timeout():
     data = parse_agent_config(agent(MASKED, worker_timeout=2))
     workers = make_vec_env(data, 2, 0, "workers")
@@ -257,6 +264,7 @@ def test_ctrl_c_before_training_starts_is_one_line(tmp_path, monkeypatch, capsys
 
 
 # ---------------------------------------------------------------- the smaller items
+@pytest.mark.slow
 def test_a_checkpoint_is_scored_at_its_models_count_and_nan_weights_name_the_file(finished, tmp_path):
     import torch
 

@@ -13,6 +13,8 @@ import pytest
 
 pytest.importorskip("rosbags.highlevel")
 
+from helpers import DATA
+
 from emmi_gym.cli import main  # noqa: E402
 from emmi_gym.experiments.replay import replay  # noqa: E402
 from emmi_gym.formats import carmen  # noqa: E402
@@ -32,7 +34,7 @@ from emmi_gym.slam import RBPFConfig  # noqa: E402
 from emmi_gym.world import load_world, rasterise  # noqa: E402
 from emmi_gym.world.images import map_server_occupancy  # noqa: E402
 
-INTEL = Path(__file__).parent / "data" / "intel-first-loop.log.gz"
+INTEL = DATA / "intel-first-loop.log.gz"
 SCANS = 40  # the first 40 keyframes of the Intel loop: a few seconds of replay
 NAMES = {"ros1": "run.bag", "sqlite3": "run-sqlite3", "mcap": "run-mcap"}
 
