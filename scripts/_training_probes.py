@@ -120,7 +120,7 @@ def _bad_crc(model: Path, to: Path) -> Path:
 
 def training_probes(folder: Path) -> list[Probe]:
     """Make the inputs (R trained here, ~30 s) and return the probes."""
-    py, cli = [sys.executable, "-c"], [sys.executable, "-m", "emmi_gym.cli"]
+    py, cli = [sys.executable, "-c"], [sys.executable, "-m", "emmi_gym.tools.cli"]
     score, plot = [*cli, "score-checkpoints"], [*cli, "learning-curves"]
     f = folder
     configs = {"corridor": CORRIDOR, "corridor24": dict(CORRIDOR, total_timesteps=24),
@@ -284,7 +284,7 @@ def training_probes(folder: Path) -> list[Probe]:
     np.savez_compressed(big, **_demonstrations(n=rows, obs_map=np.zeros((rows, 2, 64, 64), np.uint8)))
     probes += [
         Probe("10. load demonstrations of 0.6 GB from a few MB (under 1 GB: read once, not copied)",
-              [*py, "from emmi_gym.training.imitation import Demonstrations; "  # as clone --demos loads one file
+              [*py, "from emmi_gym.tools.training.imitation import Demonstrations; "  # as clone --demos loads one file
                     f"d = Demonstrations.joined([Demonstrations.load({str(big)!r})]); print(len(d), 'decisions')"],
               success=lambda last, _: None if last == f"{rows} decisions" else last),
         Probe("10. clone --episodes 10**9", [*cli, "clone", cfg["corridor"], "--episodes", str(10**9), "--out",

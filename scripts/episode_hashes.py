@@ -33,7 +33,7 @@ import numpy as np
 import emmi_gym
 
 try:
-    from emmi_gym.commands import arguments
+    from emmi_gym.tools.commands import arguments
 except ImportError:  # 0.2.0 and earlier kept the argument types in emmi_gym.inputs
     from emmi_gym.inputs import arguments
 
@@ -85,7 +85,7 @@ def episode_hash(env_id: str, seed: int, steps: int) -> str:
 def replay_hash() -> str:
     """Replay the test log with the command line and hash its measures per update and its trajectory."""
     with tempfile.TemporaryDirectory() as out:
-        subprocess.run([sys.executable, "-m", "emmi_gym.cli", "replay", str(LOG), "--particles", "8",
+        subprocess.run([sys.executable, "-m", "emmi_gym.tools.cli", "replay", str(LOG), "--particles", "8",
                         "--max-range", "30", "--out", out, "--quiet"], check=True, capture_output=True)
         digest = hashlib.sha256()
         with open(Path(out) / "metrics.csv", newline="") as f:

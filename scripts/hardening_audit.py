@@ -44,10 +44,10 @@ import yaml
 
 import emmi_gym  # noqa: F401
 from emmi_gym.env import ENV_IDS
-from emmi_gym.experiments.replay import replay
 from emmi_gym.formats.carmen import parse_lines, read_log
 from emmi_gym.slam import RBPFConfig
-from emmi_gym.training.config import load_agent_config
+from emmi_gym.tools.experiments.replay import replay
+from emmi_gym.tools.training.config import load_agent_config
 from emmi_gym.world import load_world
 
 WORLD = {"name": "box", "bounds": {"xmin": -3, "ymin": -3, "xmax": 3, "ymax": 3},
@@ -221,7 +221,7 @@ def training_interrupts(folder: Path) -> list[tuple[str, str, float]]:
         run = folder / f"run_{group}"
         previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # not inherited as ignored
         try:
-            process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", str(folder / "train.yaml"),
+            process = subprocess.Popen([sys.executable, "-m", "emmi_gym.tools.cli", "train", str(folder / "train.yaml"),
                                         "--out", str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                        text=True, start_new_session=True)
         finally:
@@ -329,7 +329,7 @@ def _flaser(x: float, t: float, x_text: str | None = None, sep: str = " ") -> st
 def probe_inputs(folder: Path) -> list[tuple[str, list[str]]]:
     """The hostile inputs of the second audit and the command each one is given to (run in a subprocess)."""
     py = [sys.executable, "-c"]
-    cli = [sys.executable, "-m", "emmi_gym.cli"]
+    cli = [sys.executable, "-m", "emmi_gym.tools.cli"]
     f = folder
     load = "from emmi_gym.world import load_world; w = load_world({!r}); print('loaded', w.name, len(w.walls), 'walls')"
 

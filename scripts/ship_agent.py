@@ -1,4 +1,4 @@
-"""Ship a trained agent with the package: copy a run's model into emmi_gym/pretrained/NAME/ and write its
+"""Ship a trained agent with the package: copy a run's model into emmi_gym/tools/pretrained/NAME/ and write its
 model card (configuration, budget, seed, training time, and its evaluation beside scripted baselines).
 
     python scripts/ship_agent.py runs/ppo_emmi_seed0 loop_corridor_emmi --episodes 30 \\
@@ -21,12 +21,16 @@ from pathlib import Path
 import yaml
 
 from emmi_gym import pretrained
-from emmi_gym.commands import arguments
-from emmi_gym.experiments.comparison import markdown_table, policy_means
-from emmi_gym.experiments.report import read_csv
-from emmi_gym.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.run_folders.training_record import TRAINING_RECORD, TrainingRecordError, machine_description
+from emmi_gym.tools.commands import arguments
+from emmi_gym.tools.experiments.comparison import markdown_table, policy_means
+from emmi_gym.tools.experiments.report import read_csv
+from emmi_gym.tools.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.run_folders.training_record import (
+    TRAINING_RECORD,
+    TrainingRecordError,
+    machine_description,
+)
 
 MAX_MODEL_BYTES = 10 * 2**20
 

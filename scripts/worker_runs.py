@@ -30,7 +30,7 @@ def main() -> None:
         for run in range(args.runs):
             config = Path(tmp) / f"agent{run}.yaml"
             config.write_text(yaml.safe_dump(dict(AGENT, policy_lag=run % 2)))
-            done = subprocess.run([sys.executable, "-m", "emmi_gym.cli", "train", str(config), "--out",
+            done = subprocess.run([sys.executable, "-m", "emmi_gym.tools.cli", "train", str(config), "--out",
                                    str(Path(tmp) / f"run{run}"), "--quiet"], capture_output=True, text=True)
             output = done.stdout + done.stderr
             ok = done.returncode == 0 and "Traceback" not in output and "Error" not in output

@@ -21,9 +21,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import emmi_gym  # noqa: E402
-from emmi_gym.commands import arguments  # noqa: E402
 from emmi_gym.env.registration import ENV_IDS  # noqa: E402
-from emmi_gym.policies import make_policy  # noqa: E402
+from emmi_gym.tools.commands import arguments  # noqa: E402
+from emmi_gym.tools.policies import make_policy  # noqa: E402
 
 gym.register_envs(emmi_gym)
 

@@ -19,7 +19,7 @@ EMMI is a *mean* over the observed cells: re-scanning the same cells raises it a
 cell's log-odds approach the clamp, so spinning in place pays under ``emmi`` (and under
 ``joint_entropy``). Weighted by coverage (``emmi_coverage``), a rise of EMMI pays in proportion
 to how much of the building the map holds: re-scanning a corner is worth little, closing a loop
-when the map is large much. ``benchmarks/reward_farming.py`` measures what each variant pays for
+when the map is large much. ``measurements/reward_farming.py`` measures what each variant pays for
 standing still, spinning in place and exploring.
 """
 

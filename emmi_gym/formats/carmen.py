@@ -35,7 +35,7 @@ from typing import TextIO
 import numpy as np
 
 from ..inputs.errors import FieldError
-from ..inputs.paths import input_file
+from ..inputs.user_paths import input_file
 
 
 class CarmenFormatError(ValueError):

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from ..formats.atomic_files import write_atomically, write_text_atomically
 from ..geometry.grid import GridGeometry
-from ..inputs.paths import write_atomically, write_text_atomically
 
 #: map_saver's thresholds (percent) and levels, and the YAML thresholds that read the levels back.
 FREE_PERCENT, OCCUPIED_PERCENT = 25, 65

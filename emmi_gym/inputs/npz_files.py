@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import FieldError
-from .paths import input_file, with_article
+from .user_paths import input_file, with_article
 
 #: The most arrays an archive may hold.
 MAX_NPZ_MEMBERS = 256

@@ -4,7 +4,7 @@ file, a binary file or bytes that are not UTF-8 named as what they are, with the
 from __future__ import annotations
 
 from .errors import FieldError
-from .paths import input_file
+from .user_paths import input_file
 
 
 def read_text_file(path, what: str, max_bytes: int, error=FieldError) -> str:

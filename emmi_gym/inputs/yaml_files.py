@@ -16,8 +16,8 @@ import re
 import yaml
 
 from .errors import FieldError, excerpt
-from .paths import input_file
 from .text_files import read_text_file
+from .user_paths import input_file
 
 #: The largest YAML file read (world files and agent configurations are a few kB).
 MAX_YAML_BYTES = 1_000_000

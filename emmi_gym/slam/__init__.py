@@ -1,5 +1,5 @@
 """Grid SLAM: a Rao-Blackwellized particle filter (replayed on CARMEN logs by
-:mod:`emmi_gym.experiments.replay`).
+:mod:`emmi_gym.tools.experiments.replay`).
 
 Imports nothing from :mod:`emmi_gym.world`: the filter sees odometry and ranges only.
 """

@@ -35,7 +35,7 @@ from scipy import ndimage
 from skimage.measure import approximate_polygon, find_contours
 
 from ..inputs.errors import excerpt
-from ..inputs.paths import input_file
+from ..inputs.user_paths import input_file
 from ..inputs.validation import (
     Choice,
     Integer,

@@ -65,7 +65,7 @@ def _looks_numeric(text: str) -> bool:
 
 
 #: Folders of ``worlds_data`` whose YAML files are built-in worlds: hand-made world files at the top,
-#: map_server maps of real buildings (``benchmarks/build_building_worlds.py``) in ``buildings/``.
+#: map_server maps of real buildings (``measurements/build_building_worlds.py``) in ``buildings/``.
 _BUILTIN_FOLDERS = (".", "buildings")
 
 

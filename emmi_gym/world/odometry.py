@@ -29,7 +29,7 @@ class OdometryNoise:
     - ``heading_drift`` (rad per metre travelled, signed).
 
     The defaults (with the 0.1 s control period) leave dead reckoning metres off after the
-    74 m ``loop_corridor`` loop, so that closing it matters; ``benchmarks/odometry_drift.py``
+    74 m ``loop_corridor`` loop, so that closing it matters; ``measurements/odometry_drift.py``
     measures the drift of each preset.
     """
 

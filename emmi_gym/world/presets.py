@@ -15,7 +15,7 @@ Lasers (field of view, beams, range, range noise 1 sigma, share of beams without
 Odometry (:class:`~emmi_gym.world.OdometryNoise` alphas per 0.1 s control period and heading
 drift per metre): ``typical`` is the default; ``good`` a quarter of its noise and a third of its
 drift (well-calibrated encoders on a hard floor); ``poor`` four times its noise and drift (carpet,
-slipping wheels). ``benchmarks/odometry_drift.py --preset all`` measures each one's dead-reckoning
+slipping wheels). ``measurements/odometry_drift.py --preset all`` measures each one's dead-reckoning
 error after 100 m.
 """
 

@@ -1,1 +1,1 @@
-"""Built-in world files (YAML); ``envs/`` at the repository top level links here."""
+"""Built-in world files (YAML), shipped in the package."""

@@ -14,7 +14,7 @@ from helpers import assert_same
 
 import emmi_gym
 from emmi_gym.env import ENV_IDS
-from emmi_gym.policies import FrontierPolicy
+from emmi_gym.tools.policies import FrontierPolicy
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 gym.register_envs(emmi_gym)
@@ -340,7 +340,7 @@ def test_frontier_policy_covers_the_map_and_beats_doing_nothing():
 
 
 def test_spinning_in_place_farms_emmi_but_not_emmi_coverage():
-    """Fast version of benchmarks/reward_farming.py: 150 steps of spinning at the start of a plan with a 180-degree
+    """Fast version of measurements/reward_farming.py: 150 steps of spinning at the start of a plan with a 180-degree
     laser. Re-scanning raises EMMI (a mean over observed cells) well beyond the time cost; weighted by coverage
     the same rise pays little; standing still pays exactly the time cost under every variant."""
     spin, still = {}, {}
@@ -583,7 +583,7 @@ def test_coverage_counts_what_the_scans_swept_not_how_the_map_lines_up():
     the loop, then the new area) drove on to the decision limit; read on the oracle map (the same scans
     at the true poses) the episode ends once the building is explored."""
     from emmi_gym import certainty
-    from emmi_gym.policies import make_policy
+    from emmi_gym.tools.policies import make_policy
 
     env = gym.make("emmi_gym/LoopCorridor-v1")
     policy = make_policy("close_loop_first")

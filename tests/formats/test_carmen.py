@@ -93,7 +93,7 @@ def test_other_laser_formats_and_messages():
 
 
 def test_record_command_writes_a_readable_log(tmp_path, capsys):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     out = tmp_path / "explore.log"
     assert main(["record", "loop_corridor", "--route", "explore", "--beams", "30", "--out", str(out)]) == 0
@@ -110,7 +110,7 @@ SCAN = " ".join(["2.5"] * 180)
 
 
 def test_replay_command_names_the_log_that_lacks_what_it_needs(tmp_path, capsys):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     for name, content, says in [("empty.log", "", "has no FLASER, RAWLASER1 or ROBOTLASER1 line"),
                                 ("no_odometry.log", "RAWLASER1 0 -1.57 3.1415 0.0174 30 0.01 0 2 2.5 2.5 0 1.0 h 1.0\n",
@@ -169,9 +169,9 @@ def test_scans_without_echo_are_reported_and_parsing_shows_progress(tmp_path, ca
 
 
 def test_replay_of_a_straight_drive_and_of_a_pose_far_away():
-    from emmi_gym.experiments.replay import replay
     from emmi_gym.slam import RBPFConfig
     from emmi_gym.slam.occupancy import MapTooLarge
+    from emmi_gym.tools.experiments.replay import replay
 
     straight = [f"FLASER 180 {SCAN} 0 0 0 {0.5 * k} 0 0 {k}.0 h {k}.0" for k in range(5)]
     result = replay(carmen.parse_lines(straight), RBPFConfig(particles=2), max_range=8.0)
@@ -216,8 +216,8 @@ def test_gzipped_logs_and_laser_offsets_from_param_lines(tmp_path):
 def test_replay_matches_truth_by_time_and_writes_tum(tmp_path):
     """TRUEPOS lines after their scans (as the radish-noisy logs have them) still give an ATE, and the
     best path is written in the TUM format."""
-    from emmi_gym.experiments.replay import replay, write_tum
     from emmi_gym.slam import RBPFConfig
+    from emmi_gym.tools.experiments.replay import replay, write_tum
 
     lines = []
     for k in range(6):
@@ -238,7 +238,7 @@ def test_replay_matches_truth_by_time_and_writes_tum(tmp_path):
 
 
 def test_help_is_plain_text(capsys):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     with pytest.raises(SystemExit):
         main(["--help"])
@@ -253,7 +253,7 @@ def flaser(x: float, t: float, x_text: str | None = None, sep: str = " ") -> str
 
 
 def test_timestamps_that_go_backwards_or_never_change_are_reported_with_their_lines(tmp_path, capsys):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     backwards = carmen.parse_lines(["# header", *(flaser(0.5 * k, [1.0, 2.0, 1.5, 3.0][k]) for k in range(4))])
     assert backwards.report() == ["laser timestamps go backwards 1 time(s), first at line 4 (1.5 after 2.0 at line 3): "
@@ -329,7 +329,7 @@ def test_the_records_of_a_log_are_bounded_in_memory():
 
 
 def test_a_pose_far_off_asks_for_too_large_maps_not_an_overflow(tmp_path, capsys):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     path = tmp_path / "far.log"
     path.write_text("\n".join([flaser(0.5 * k, float(k)) for k in range(3)] + [flaser(1e300, 3.0)]) + "\n")
@@ -349,7 +349,7 @@ def test_a_pose_far_off_asks_for_too_large_maps_not_an_overflow(tmp_path, capsys
                               "regular file, not a folder"),
 ])
 def test_replay_options_name_themselves_before_any_work(tmp_path, capsys, options, expected):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     log, file = tmp_path / "run.log", tmp_path / "a_file"
     log.write_text("\n".join(flaser(0.5 * k, float(k)) for k in range(3)) + "\n")

@@ -15,8 +15,6 @@ pytest.importorskip("rosbags.highlevel")
 
 from helpers import DATA
 
-from emmi_gym.cli import main  # noqa: E402
-from emmi_gym.experiments.replay import replay  # noqa: E402
 from emmi_gym.formats import carmen  # noqa: E402
 from emmi_gym.formats.map_server import FREE_PERCENT  # noqa: E402
 from emmi_gym.formats.ros_bags import BagError, BagTopics, read_bag  # noqa: E402
@@ -31,6 +29,8 @@ from emmi_gym.formats.ros_messages import (  # noqa: E402
 from emmi_gym.formats.ros_writers import STORAGES, open_bag, write_log_bag  # noqa: E402
 from emmi_gym.geometry.grid import GridGeometry  # noqa: E402
 from emmi_gym.slam import RBPFConfig  # noqa: E402
+from emmi_gym.tools.cli import main  # noqa: E402
+from emmi_gym.tools.experiments.replay import replay  # noqa: E402
 from emmi_gym.world import load_world, rasterise  # noqa: E402
 from emmi_gym.world.images import map_server_occupancy  # noqa: E402
 

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from emmi_gym.inputs.yaml_files import MAX_YAML_BYTES
-from emmi_gym.training.config import AgentConfigError, load_agent_config
+from emmi_gym.tools.training.config import AgentConfigError, load_agent_config
 from emmi_gym.world import load_world
 from emmi_gym.world.spec import WorldFileError
 

@@ -19,7 +19,7 @@ import yaml
 from helpers import ROOT
 
 import emmi_gym
-import emmi_gym.cli
+import emmi_gym.tools.cli
 from emmi_gym.env.config import REWARD_SCALES, REWARDS
 from emmi_gym.env.registration import ENV_IDS
 
@@ -135,8 +135,8 @@ def test_the_site_navigation_lists_every_page():
 
 
 #: Public modules without an API page, and why.
-NOT_IN_API = {"emmi_gym.cli": "the command line has its own page, docs/cli.md",
-              "emmi_gym.commands": "the command line's subcommands, on docs/cli.md (what they run has API pages)"}
+NOT_IN_API = {"emmi_gym.tools.cli": "the command line has its own page, docs/cli.md",
+              "emmi_gym.tools.commands": "the command line's subcommands, on docs/cli.md (what they run has API pages)"}
 
 
 def test_every_public_module_has_an_api_page():
@@ -269,13 +269,13 @@ def test_contributing_sets_up_with_the_readme_test_command():
 
 def test_contributing_names_files_commands_and_markers_that_exist(pytestconfig):
     text = (ROOT / "CONTRIBUTING.md").read_text()
-    paths = set(re.findall(r"\b((?:scripts|benchmarks|tests|docs)/[\w./-]+\.(?:py|md))\b", text))
+    paths = set(re.findall(r"\b((?:scripts|measurements|tests|docs)/[\w./-]+\.(?:py|md))\b", text))
     paths |= set(re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", text))
     missing = sorted(p for p in paths if not (ROOT / p).exists())
     missing += sorted(name for name in re.findall(r"`(\w+\.py)`", text)
-                      if not any((ROOT / folder / name).exists() for folder in ("scripts", "benchmarks")))
+                      if not any((ROOT / folder / name).exists() for folder in ("scripts", "measurements")))
     assert not missing, f"CONTRIBUTING.md names files that do not exist: {missing}"
-    parser = emmi_gym.cli.build_parser()
+    parser = emmi_gym.tools.cli.build_parser()
     for command in sorted(set(re.findall(r"`emmi-gym (\w+)", text))):
         with pytest.raises(SystemExit) as done:
             parser.parse_args([command, "--help"])
@@ -297,7 +297,7 @@ def test_the_pretrained_agents_snippets_run_as_written_in_a_fresh_interpreter(pa
 
 
 def test_the_cli_page_lists_every_subcommand():
-    parser = emmi_gym.cli.build_parser()
+    parser = emmi_gym.tools.cli.build_parser()
     commands = set(re.search(r"\{([\w,-]+)\}", parser.format_usage()).group(1).split(","))
     listed = set(re.findall(r"^\| `emmi-gym ([\w-]+)", (DOCS / "cli.md").read_text(), re.MULTILINE))
     assert listed == commands, f"docs/cli.md lists {sorted(listed - commands)} and lacks {sorted(commands - listed)}"
@@ -312,11 +312,11 @@ def test_no_user_page_runs_a_maintainer_script():
     assert not runs, f"user pages run files of scripts/: {runs}"
 
 
-def test_the_benchmarks_index_lists_every_script_and_the_pages_that_cite_it():
-    index = (ROOT / "benchmarks" / "README.md").read_text()
+def test_the_measurements_index_lists_every_script_and_the_pages_that_cite_it():
+    index = (ROOT / "measurements" / "README.md").read_text()
     listed = dict(re.findall(r"^\| `(\w+\.py)` \| .* \| (.+) \|$", index, re.MULTILINE))
-    scripts = {p.name for p in (ROOT / "benchmarks").glob("*.py") if not p.name.startswith("_")}
-    assert set(listed) == scripts, f"benchmarks/README.md lists {sorted(set(listed) - scripts)}, " \
+    scripts = {p.name for p in (ROOT / "measurements").glob("*.py") if not p.name.startswith("_")}
+    assert set(listed) == scripts, f"measurements/README.md lists {sorted(set(listed) - scripts)}, " \
                                    f"lacks {sorted(scripts - set(listed))}"
     for script, cited_by in listed.items():
         pages = re.findall(r"\]\(\.\./(docs/[\w/.-]+\.md)", cited_by)

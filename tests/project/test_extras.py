@@ -30,7 +30,7 @@ def run_without(modules: str, code: str) -> subprocess.CompletedProcess:
 
 
 def cli_without(modules: str, *argv: str) -> subprocess.CompletedProcess:
-    return run_without(modules, f"from emmi_gym.cli import main\nsys.exit(main({list(argv)!r}))")
+    return run_without(modules, f"from emmi_gym.tools.cli import main\nsys.exit(main({list(argv)!r}))")
 
 
 def test_each_extra_is_named_by_its_modules():

@@ -7,8 +7,9 @@ import emmi_gym
 
 ROOT = Path(emmi_gym.__file__).parent
 
-#: What each package imports of the others (docs/design.md, "Packages"): imports point down this table.
-ALLOWED = {
+#: The environment library, bottom up: what each of its packages imports of the others (docs/design.md,
+#: "Packages"). The library never imports the tools.
+LIBRARY = {
     "inputs": set(),
     "concurrency": {"inputs"},
     "geometry": set(),
@@ -19,21 +20,37 @@ ALLOWED = {
     "slam": {"geometry", "inputs", "concurrency", "certainty"},
     "scoring": {"geometry", "certainty", "slam"},
     "env": {"geometry", "inputs", "certainty", "world", "slam", "scoring", "navigation"},
+}
+#: The tools over the library (``emmi_gym/tools/``), bottom up: what each imports of the library and of the
+#: tools below it; ``cli`` is ``tools/cli.py`` (and ``tools/__init__.py``).
+TOOLS = {
     "policies": {"world"},
     "experiments": {"geometry", "inputs", "concurrency", "certainty", "formats", "world", "slam", "scoring",
                     "policies"},
-    "training": {"inputs", "concurrency", "scoring", "env", "policies", "experiments"},
+    "training": {"inputs", "concurrency", "formats", "scoring", "env", "policies", "experiments"},
     "pretrained": {"inputs", "training"},
     "commands": {"inputs", "concurrency", "certainty", "formats", "world", "slam", "env", "policies", "experiments",
                  "training", "pretrained"},
+    "cli": {"commands"},
 }
+ALLOWED = LIBRARY | TOOLS
 
 
-def imported_packages(path: Path) -> set[str]:
-    """The emmi_gym packages a module imports (relative or absolute, at any depth of the file)."""
-    module = ["emmi_gym", *path.relative_to(ROOT).with_suffix("").parts]
+def layer(module: list[str]) -> str | None:
+    """The layer of the dotted name ``module`` (split): a library package, a tools package, ``cli``, or None for
+    the package's own face (``emmi_gym``, ``emmi_gym.__version__``)."""
+    if len(module) < 2:
+        return None
+    if module[1] != "tools":
+        return module[1] if module[1] in LIBRARY else None
+    return module[2] if len(module) > 2 and module[2] in TOOLS else "cli"
+
+
+def imported_layers(source: str, module: list[str]) -> set[str]:
+    """The layers the module ``module`` (its dotted name, split) imports in ``source``: relative or absolute,
+    at any depth of the file."""
     found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.ImportFrom):
             if node.level:
                 target = module[:len(module) - node.level] + (node.module.split(".") if node.module else [])
@@ -41,28 +58,65 @@ def imported_packages(path: Path) -> set[str]:
                 target = node.module.split(".")
             else:
                 continue
-            found |= {target[1]} if len(target) > 1 else {alias.name for alias in node.names}
+            targets = [target] if len(target) > 1 and target[-1] != "tools" else \
+                [[*target, alias.name] for alias in node.names]
         elif isinstance(node, ast.Import):
-            found |= {a.name.split(".")[1] for a in node.names if a.name.startswith("emmi_gym.")}
+            targets = [a.name.split(".") for a in node.names if a.name.startswith("emmi_gym.")]
+        else:
+            continue
+        found |= {name for name in map(layer, targets) if name}
     return found
 
 
+def modules_of(path: Path) -> tuple[list[str], str]:
+    """A file's dotted module name (split) and its layer."""
+    module = ["emmi_gym", *path.relative_to(ROOT).with_suffix("").parts]
+    return module, layer(module)
+
+
+def test_the_tree_shows_the_two_halves():
+    """The library's packages at the top of ``emmi_gym``, the tools under ``emmi_gym/tools``, nothing else."""
+    top = {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file()}
+    assert top == set(LIBRARY) | {"tools", "worlds_data"}
+    assert {p.name for p in (ROOT / "tools").iterdir() if (p / "__init__.py").is_file()} == set(TOOLS) - {"cli"}
+    assert sorted(p.name for p in ROOT.glob("*.py")) == ["__init__.py", "__main__.py"]
+    assert sorted(p.name for p in (ROOT / "tools").glob("*.py")) == ["__init__.py", "cli.py"]
+
+
+def test_an_import_of_the_tools_from_the_library_is_found():
+    slam = ["emmi_gym", "slam", "rbpf"]
+    assert imported_layers("from ..tools.training import train", slam) == {"training"}
+    assert imported_layers("from ..tools import pretrained", slam) == {"pretrained"}
+    assert imported_layers("import emmi_gym.tools.cli", slam) == {"cli"}
+    assert imported_layers("from .. import __version__\nfrom ..geometry.grid import G", slam) == {"geometry"}
+
+
+def test_the_library_never_imports_the_tools():
+    """``gymnasium.make`` needs the library only: none of its modules imports training, the experiments, the
+    policies, the shipped agents or the command, even inside a function."""
+    wrong = [f"{path.relative_to(ROOT)} imports {sorted(found)}" for path in sorted(ROOT.rglob("*.py"))
+             if modules_of(path)[1] in LIBRARY
+             and (found := imported_layers(path.read_text(), modules_of(path)[0]) & set(TOOLS))]
+    assert not wrong, wrong
+
+
 def test_each_package_imports_only_the_packages_below_it():
-    packages = {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file()} - {"worlds_data"}
-    assert packages == set(ALLOWED)
-    for package in packages:
-        for path in (ROOT / package).rglob("*.py"):
-            wrong = imported_packages(path) - ALLOWED[package] - {package, "__version__"}
-            assert not wrong, f"{path.relative_to(ROOT)} imports {sorted(wrong)}, which {package} may not"
+    for path in ROOT.rglob("*.py"):
+        module, own = modules_of(path)
+        if own is None:
+            continue
+        wrong = imported_layers(path.read_text(), module) - ALLOWED[own] - {own}
+        assert not wrong, f"{path.relative_to(ROOT)} imports {sorted(wrong)}, which {own} may not"
 
 
 def test_only_the_commands_parse_arguments_or_print():
     """The library takes typed arguments and returns results (or reports through a callback it is given):
-    argparse and print belong to ``cli.py`` and ``commands/``, as rl-baselines3-zoo keeps them to its scripts."""
+    argparse and print belong to ``tools/cli.py`` and ``tools/commands/``, as rl-baselines3-zoo keeps them to
+    its scripts."""
     found = []
     for path in ROOT.rglob("*.py"):
         relative = path.relative_to(ROOT)
-        if relative.parts[0] == "commands" or relative == Path("cli.py"):
+        if relative.parts[:2] == ("tools", "commands") or relative == Path("tools", "cli.py"):
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             imported = [a.name for a in node.names] if isinstance(node, ast.Import) else \
@@ -72,10 +126,6 @@ def test_only_the_commands_parse_arguments_or_print():
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "print":
                 found.append(f"{relative}:{node.lineno} prints")
     assert not found, found
-
-
-def test_no_loose_modules_beside_the_packages():
-    assert sorted(p.name for p in ROOT.glob("*.py")) == ["__init__.py", "cli.py"]
 
 
 def module_name(path: Path) -> str:

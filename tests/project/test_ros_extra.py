@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from emmi_gym.cli import main
+from emmi_gym.tools.cli import main
 
 
 @pytest.fixture

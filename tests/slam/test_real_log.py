@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from helpers import DATA
 
-from emmi_gym.experiments.replay import replay
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.slam import RBPFConfig
+from emmi_gym.tools.experiments.replay import replay
 
 pytestmark = pytest.mark.slow  # replays the first Intel loop (module fixture, 2.7 s), which both tests share
 

@@ -96,7 +96,7 @@ def corridor_env_runs():
 
 @pytest.mark.slow
 def test_hypotheses_survive_the_open_loop_and_collapse_when_it_closes(corridor_env_runs):
-    """The paper's Fig. 6 with LoopCorridor-v1's sensors (the fast version of ``benchmarks/slam_accuracy.py
+    """The paper's Fig. 6 with LoopCorridor-v1's sensors (the fast version of ``measurements/slam_accuracy.py
     --laser '{"preset": "sick_lms200", "max_range": 8.0}' --odometry poor``, whose 20 seeds give 15, 20
     and 17 of 20 for the three counts): no resampling before the loop closes, Neff falls or the set
     resamples as it closes, and EMMI's largest rise of the loop's second half comes with the closure."""

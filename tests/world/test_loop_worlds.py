@@ -9,8 +9,8 @@ import pytest
 from helpers import ROOT, independent_loops
 
 import emmi_gym  # noqa: F401
-from emmi_gym.experiments.ab import check_world
 from emmi_gym.inputs.validation import OptionError
+from emmi_gym.tools.experiments.ab import check_world
 from emmi_gym.world import rasterise
 from emmi_gym.world.loop_worlds import LoopWorldConfig, generate_loop_world
 

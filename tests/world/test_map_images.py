@@ -176,7 +176,7 @@ def test_a_half_circle_scanner_finds_the_frontier_behind_it():
 
 @pytest.mark.parametrize("name", ["intel", "aces", "csail", "fr079"])
 def test_real_buildings_load_by_name(name):
-    """The worlds built from the corrected logs (benchmarks/build_building_worlds.py) match their map images: the
+    """The worlds built from the corrected logs (measurements/build_building_worlds.py) match their map images: the
     free space reachable from the log's first pose is the building the robot saw."""
     world = load_world(name)
     assert world.source.endswith(f"buildings/{name}.yaml")
@@ -258,7 +258,7 @@ def test_broken_images_name_the_file_and_what_is_wrong(tmp_path, name, content, 
 
 
 def test_images_and_world_files_that_are_devices_are_named_as_such(tmp_path, capsys):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     with pytest.raises(WorldFileError, match=r"/dev/zero: expected a world file, not a character device"):
         load_world("/dev/zero")

@@ -347,7 +347,7 @@ def test_odometry_noise_has_the_model_variances():
 
 
 def test_dead_reckoning_drift_matches_the_documented_defaults():
-    """Fast version of benchmarks/odometry_drift.py: round the loop_corridor loop on 8 seeds."""
+    """Fast version of measurements/odometry_drift.py: round the loop_corridor loop on 8 seeds."""
     from emmi_gym.world.recording import drive_route
 
     world = load_world("loop_corridor")
@@ -428,7 +428,7 @@ def test_sensor_presets_follow_the_datasheets_and_take_overrides():
 
 
 def test_odometry_presets_drift_in_their_order():
-    """Fast version of benchmarks/odometry_drift.py --preset all: one loop (74 m), 6 seeds."""
+    """Fast version of measurements/odometry_drift.py --preset all: one loop (74 m), 6 seeds."""
     from emmi_gym.world.presets import odometry_config
     from emmi_gym.world.recording import drive_route
 

@@ -2,8 +2,8 @@
 
 import pytest
 
-from emmi_gym.cli import build_parser
-from emmi_gym.commands import arguments
+from emmi_gym.tools.cli import build_parser
+from emmi_gym.tools.commands import arguments
 
 SEEDED = (["ab"], ["demo"], ["benchmark"], ["compare-policies"])
 WORKERS = (["ab"], ["demo"], ["clone", "c.yaml", "--out", "o"], ["evaluate", "m.zip"], ["benchmark"],

@@ -1,9 +1,9 @@
-"""What a benchmark's routes explain of its maps (emmi_gym.experiments.attribution)."""
+"""What a benchmark's routes explain of its maps (emmi_gym.tools.experiments.attribution)."""
 
 import numpy as np
 import pytest
 
-from emmi_gym.experiments.attribution import PREDICTORS, attribution, markdown
+from emmi_gym.tools.experiments.attribution import PREDICTORS, attribution, markdown
 
 
 def episodes(offsets: dict[str, float], worlds: int = 12, noise: float = 0.0, seed: int = 0) -> list[dict]:

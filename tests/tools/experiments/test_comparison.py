@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from emmi_gym.experiments.comparison import (
+from emmi_gym.tools.experiments.comparison import (
     ComparisonSettings,
     compare,
     markdown_table,
@@ -11,7 +11,7 @@ from emmi_gym.experiments.comparison import (
     play_on_world,
     plot_pair,
 )
-from emmi_gym.experiments.report import read_csv, write_csv
+from emmi_gym.tools.experiments.report import read_csv, write_csv
 from emmi_gym.world.map_sets import map_set_files
 
 
@@ -41,14 +41,14 @@ def test_policies_are_paired_by_world_and_seed(tmp_path):
 
 
 def test_worlds_of_takes_a_sets_first_maps_and_a_world_as_it_is():
-    from emmi_gym.experiments.comparison import worlds_of
+    from emmi_gym.tools.experiments.comparison import worlds_of
 
     plans = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
     assert worlds_of(["dungeon_maps/test", "loop_corridor"], 2) == [*plans, "loop_corridor"]
 
 
 def test_compare_policies_command_writes_the_paired_table_episodes_and_maps(tmp_path, capsys):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     worlds = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
     out = tmp_path / "out"
@@ -72,7 +72,7 @@ def test_compare_policies_command_writes_the_paired_table_episodes_and_maps(tmp_
     (["--policies", "frontier", "nope"], "--policies: unknown ['nope']"),
 ])
 def test_compare_policies_command_refuses_bad_options_in_one_line(tmp_path, capsys, argv, message):
-    from emmi_gym.cli import main
+    from emmi_gym.tools.cli import main
 
     with pytest.raises(SystemExit) as done:
         main(["compare-policies", *argv, "--out", str(tmp_path / "out")])

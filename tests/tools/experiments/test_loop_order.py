@@ -17,11 +17,11 @@ from gymnasium.utils.env_checker import check_env
 from helpers import ROOT
 
 import emmi_gym  # noqa: F401
-from emmi_gym.cli import main
-from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
-from emmi_gym.experiments.sweep import SWEEP_MEASURES, SweepFileError, ab_settings, read_sweep
-from emmi_gym.policies import make_policy
-from emmi_gym.training.train import make_agent_env
+from emmi_gym.tools.cli import main
+from emmi_gym.tools.experiments.loop_order import LOOP_ORDER_KEY
+from emmi_gym.tools.experiments.sweep import SWEEP_MEASURES, SweepFileError, ab_settings, read_sweep
+from emmi_gym.tools.policies import make_policy
+from emmi_gym.tools.training.train import make_agent_env
 from emmi_gym.world.presets import odometry_config
 
 TINY = dict(particles=3, max_decisions=8)

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from emmi_gym.experiments.comparison import ComparisonSettings, compare_on
-from emmi_gym.experiments.reward_alignment import Discount, alignment, discounted_return, markdown, policy_front
+from emmi_gym.tools.experiments.comparison import ComparisonSettings, compare_on
+from emmi_gym.tools.experiments.reward_alignment import Discount, alignment, discounted_return, markdown, policy_front
 
 
 def step(emmi=0.0, coverage=0.0, duration=100, collision=0.0):

@@ -3,11 +3,11 @@ pairs on that side ("A better"), never merely "A higher"; numbers are written al
 
 import math
 
-from emmi_gym.experiments.comparison import markdown_table
-from emmi_gym.experiments.report import SUMMARY_COLUMNS, markdown_summary
-from emmi_gym.scoring.directions import BETTER, HIGHER, better_side
-from emmi_gym.training.benchmark import markdown
-from emmi_gym.training.evaluate import format_table
+from emmi_gym.tools.experiments.comparison import markdown_table
+from emmi_gym.tools.experiments.directions import BETTER, HIGHER, better_side
+from emmi_gym.tools.experiments.report import SUMMARY_COLUMNS, markdown_summary
+from emmi_gym.tools.training.benchmark import markdown
+from emmi_gym.tools.training.evaluate import format_table
 
 
 def _row_cells(table: str, label: str) -> list[str]:

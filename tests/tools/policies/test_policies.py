@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import emmi_gym
-from emmi_gym.policies import TARGET_SNAP, make_policy
+from emmi_gym.tools.policies import TARGET_SNAP, make_policy
 
 gym.register_envs(emmi_gym)
 

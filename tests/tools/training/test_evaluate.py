@@ -6,11 +6,11 @@ import gymnasium as gym
 import pytest
 
 from emmi_gym import pretrained
-from emmi_gym.cli import main
-from emmi_gym.experiments.comparison import ComparisonSettings, play_on_world
-from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.train import train
+from emmi_gym.tools.cli import main
+from emmi_gym.tools.experiments.comparison import ComparisonSettings, play_on_world
+from emmi_gym.tools.training.config import parse_agent_config
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.train import train
 from emmi_gym.world.map_sets import map_set_files
 
 #: A tiny waypoint agent on a small generated world, two decisions an episode.
@@ -92,9 +92,9 @@ def test_the_package_ships_the_reference_agents():
 
 @pytest.mark.slow
 def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path, capsys):
-    from emmi_gym.experiments.report import read_csv
-    from emmi_gym.training.checkpoint_scores import score_checkpoints
-    from emmi_gym.training.evaluate import compare_model
+    from emmi_gym.tools.experiments.report import read_csv
+    from emmi_gym.tools.training.checkpoint_scores import score_checkpoints
+    from emmi_gym.tools.training.evaluate import compare_model
 
     data = {"env": {"id": "emmi_gym/Explore-v1", "kwargs": TINY_ENV}, "algorithm": "MaskablePPO",
             "policy": "MultiInputPolicy",

@@ -10,8 +10,8 @@ import zlib
 import pytest
 import yaml
 
-from emmi_gym.cli import main
-from emmi_gym.training.config import AgentConfigError, load_agent_config
+from emmi_gym.tools.cli import main
+from emmi_gym.tools.training.config import AgentConfigError, load_agent_config
 
 AGENT = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3}}, "algorithm": "PPO",
          "policy": "MultiInputPolicy", "hyperparameters": {"n_steps": 16, "batch_size": 16}, "n_envs": 1,
@@ -45,7 +45,7 @@ def test_policy_kwargs_name_their_classes_by_a_word(tmp_path):
     import torch
     from stable_baselines3 import PPO
 
-    from emmi_gym.training.config import sb3_policy_kwargs
+    from emmi_gym.tools.training.config import sb3_policy_kwargs
 
     path = agent_file(tmp_path, hyperparameters={"n_steps": 16, "policy_kwargs": {
         "net_arch": {"pi": [32], "vf": [16]}, "activation_fn": "Tanh", "optimizer_class": "AdamW"}})

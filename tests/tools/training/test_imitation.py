@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import yaml
 
-from emmi_gym.cli import main
-from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.imitation import Demonstrations, agreement, cloned_model, collect_demonstrations
+from emmi_gym.tools.cli import main
+from emmi_gym.tools.training.config import parse_agent_config
+from emmi_gym.tools.training.imitation import Demonstrations, agreement, cloned_model, collect_demonstrations
 
 #: LoopCorridor-v1's waypoint agent, small: 3 particles, 3 decisions an episode.
 CONFIG = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},

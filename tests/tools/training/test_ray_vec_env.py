@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from helpers import assert_same
 
-from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.train import make_vec_env, train
+from emmi_gym.tools.training.config import parse_agent_config
+from emmi_gym.tools.training.train import make_vec_env, train
 
 pytestmark = pytest.mark.slow  # each test starts a local Ray instance (module fixture) and trains or steps in actors
 

@@ -18,10 +18,10 @@ from hypothesis.extra import numpy as hnp
 
 from emmi_gym.inputs.csv_files import read_csv_file
 from emmi_gym.inputs.errors import INPUT_ERRORS
-from emmi_gym.training.config import load_agent_config
-from emmi_gym.training.demonstrations import Demonstrations
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.run_folders.model_files import check_model_file
+from emmi_gym.tools.training.config import load_agent_config
+from emmi_gym.tools.training.demonstrations import Demonstrations
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.run_folders.model_files import check_model_file
 
 EXAMPLES = settings(max_examples=40, deadline=None)
 

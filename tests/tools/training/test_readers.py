@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 import yaml
 
-from emmi_gym.cli import main as emmi_gym
 from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
-from emmi_gym.training import checkpoint_scores
-from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.demonstrations import Demonstrations, DemonstrationsError
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.run_folders.model_files import ModelFileError, check_model_file
-from emmi_gym.training.run_folders.training_record import TrainingRecordError
-from emmi_gym.training.train import train
+from emmi_gym.tools.cli import main as emmi_gym
+from emmi_gym.tools.training import checkpoint_scores
+from emmi_gym.tools.training.config import parse_agent_config
+from emmi_gym.tools.training.demonstrations import Demonstrations, DemonstrationsError
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.run_folders.model_files import ModelFileError, check_model_file
+from emmi_gym.tools.training.run_folders.training_record import TrainingRecordError
+from emmi_gym.tools.training.train import train
 
 MEASURES = "timesteps,oracle_accuracy,ate,sim_steps,coverage\n"
 CURVE = MEASURES + "8,0.5,0.2,100,0.4\n16,0.6,0.1,90,0.5\n"
@@ -114,7 +114,7 @@ def test_learning_curves_draw_runs_of_one_label_at_their_mean_decision_counts(tm
 
 
 def test_learning_curves_read_the_loop_order_where_the_files_have_it(tmp_path):
-    from emmi_gym.training.learning_curves import read_baselines, read_curve
+    from emmi_gym.tools.training.learning_curves import read_baselines, read_curve
 
     (tmp_path / "curve.csv").write_text(MEASURES.rstrip("\n") + ",closed_loop_first\n8,0.5,0.2,100,0.4,0.25\n")
     (tmp_path / "episodes.csv").write_text("variant," + MEASURES.split(",", 1)[1].rstrip("\n") + ",closed_loop_first\n"
@@ -243,7 +243,7 @@ def test_a_model_whose_weights_are_not_torchs_names_the_member(tmp_path, saved_m
 def test_weights_in_torchs_format_that_torch_cannot_load_name_the_file(tmp_path, saved_model):
     import pickle
 
-    from emmi_gym.training.run_folders.model_files import load_model_file
+    from emmi_gym.tools.training.run_folders.model_files import load_model_file
 
     weights = io.BytesIO()
     with zipfile.ZipFile(weights, "w") as archive:  # torch.save's layout, a pickle torch's weights-only loader refuses
@@ -398,7 +398,7 @@ def test_a_billion_episodes_is_refused_at_parse_time(capsys, argv):
 
 
 def test_episodes_are_made_when_asked_for():
-    from emmi_gym.experiments.comparison import episodes_on
+    from emmi_gym.tools.experiments.comparison import episodes_on
 
     tracemalloc.start()
     episodes = episodes_on(None, 10**9, 7)

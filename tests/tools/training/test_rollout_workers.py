@@ -11,12 +11,12 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
 from emmi_gym.concurrency.parallel import ActorFailed
-from emmi_gym.training.config import AgentConfigError, parse_agent_config
-from emmi_gym.training.evaluate import evaluate_model
-from emmi_gym.training.rollout_workers import RolloutWorkers
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.semi_markov import SemiMarkovDiscounts
-from emmi_gym.training.train import make_vec_env, model_of, train
+from emmi_gym.tools.training.config import AgentConfigError, parse_agent_config
+from emmi_gym.tools.training.evaluate import evaluate_model
+from emmi_gym.tools.training.rollout_workers import RolloutWorkers
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.semi_markov import SemiMarkovDiscounts
+from emmi_gym.tools.training.train import make_vec_env, model_of, train
 
 #: A waypoint agent with masks and semi-Markov discounts, whose 3-decision episodes end within a rollout.
 MASKED = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},

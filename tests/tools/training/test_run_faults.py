@@ -25,9 +25,9 @@ from test_training import config_dict, interrupt_training_at
 
 from emmi_gym.concurrency.interrupts import RunStopped
 from emmi_gym.concurrency.parallel import ActorStalled
-from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.train import make_vec_env, model_of, train
+from emmi_gym.tools.training.config import parse_agent_config
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.train import make_vec_env, model_of, train
 
 finished, run = test_run_safety.finished, test_run_safety.run  # fixtures: a finished run, and a copy of it
 
@@ -122,7 +122,7 @@ def test_init_from_another_policy_class_is_refused_and_a_model_without_its_confi
 
 # ---------------------------------------------------------------- the benchmark
 def test_the_benchmark_checks_every_argument_before_the_first_agent(tmp_path):
-    from emmi_gym.training.benchmark import make_jobs
+    from emmi_gym.tools.training.benchmark import make_jobs
 
     config = parse_agent_config(dict(CLONE_CONFIG, policy="MultiInputPolicy"))
     with pytest.raises(ValueError, match="--rewards: emmi given more than once"):
@@ -133,8 +133,8 @@ def test_the_benchmark_checks_every_argument_before_the_first_agent(tmp_path):
 
 
 def test_the_benchmark_refuses_to_report_a_larger_run_under_a_smaller_budget(tmp_path):
-    from emmi_gym.training.benchmark import make_jobs, run_benchmark
-    from emmi_gym.training.run_folders import RunError
+    from emmi_gym.tools.training.benchmark import make_jobs, run_benchmark
+    from emmi_gym.tools.training.run_folders import RunError
 
     config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))
     job = make_jobs(config, ["emmi"], range(1), 32, 1, [], tmp_path)[0]
@@ -230,7 +230,7 @@ def test_sigterm_saves_a_checkpoint_exits_143_and_the_run_resumes_from_it(tmp_pa
     config = tmp_path / "agent.yaml"
     config.write_text(yaml.safe_dump(agent(MASKED, total_timesteps=10**6, checkpoint_freq=12, policy_lag=1)))
     run_dir = tmp_path / "run"
-    process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", config, "--out", run_dir, "--quiet"],
+    process = subprocess.Popen([sys.executable, "-m", "emmi_gym", "train", config, "--out", run_dir, "--quiet"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 180
     while not list((run_dir / "checkpoints").glob("model_*_steps.zip")) and time.monotonic() < deadline:
@@ -253,7 +253,7 @@ def test_sigterm_saves_a_checkpoint_exits_143_and_the_run_resumes_from_it(tmp_pa
 
 
 def test_ctrl_c_before_training_starts_is_one_line(tmp_path, monkeypatch, capsys):
-    import emmi_gym.training.config as configs
+    import emmi_gym.tools.training.config as configs
 
     def interrupted(path):
         raise KeyboardInterrupt
@@ -268,7 +268,7 @@ def test_ctrl_c_before_training_starts_is_one_line(tmp_path, monkeypatch, capsys
 def test_a_checkpoint_is_scored_at_its_models_count_and_nan_weights_name_the_file(finished, tmp_path):
     import torch
 
-    from emmi_gym.training.run_folders.model_files import ModelFileError, load_model_file
+    from emmi_gym.tools.training.run_folders.model_files import ModelFileError, load_model_file
 
     folder = tmp_path / "run"
     shutil.copytree(finished[0], folder)
@@ -284,7 +284,7 @@ def test_a_checkpoint_is_scored_at_its_models_count_and_nan_weights_name_the_fil
 
 def test_a_curve_with_negative_timesteps_and_a_world_in_options_are_refused(tmp_path, capsys):
     from emmi_gym.inputs.csv_files import CsvFileError
-    from emmi_gym.training.learning_curves import read_curve
+    from emmi_gym.tools.training.learning_curves import read_curve
 
     (tmp_path / "curve.csv").write_text("timesteps,oracle_accuracy,ate,sim_steps,coverage\n-8,0.5,0.2,100,0.4\n")
     with pytest.raises(CsvFileError, match=r"curve\.csv: field 'timesteps': expected a number of decisions \(0 or"):
@@ -295,7 +295,7 @@ def test_a_curve_with_negative_timesteps_and_a_world_in_options_are_refused(tmp_
 
 def test_readers_refuse_what_would_take_more_than_their_bound(tmp_path):
     from emmi_gym.inputs.csv_files import MAX_CSV_BYTES, CsvFileError, read_csv_file
-    from emmi_gym.training.demonstrations import MAX_DEMONSTRATION_BYTES, Demonstrations, DemonstrationsError
+    from emmi_gym.tools.training.demonstrations import MAX_DEMONSTRATION_BYTES, Demonstrations, DemonstrationsError
 
     (tmp_path / "big.csv").write_bytes(b"a\n" + b"1\n" * (MAX_CSV_BYTES // 2))
     with pytest.raises(CsvFileError, match="big.csv"):

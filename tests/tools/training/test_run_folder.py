@@ -1,5 +1,5 @@
-"""The run-folder type itself (:class:`~emmi_gym.training.run_folders.RunFolder`): a new run into a folder in use is
-refused, overwriting removes the run's files and nothing else, a resumed run must bring its own configuration,
+"""The run-folder type itself (:class:`~emmi_gym.tools.training.run_folders.RunFolder`): a new run into a folder in
+use is refused, overwriting removes the run's files and nothing else, a resumed run must bring its own configuration,
 and the run goes on from its newest checkpoint that loads, a damaged one skipped."""
 
 from dataclasses import replace
@@ -7,9 +7,9 @@ from dataclasses import replace
 import pytest
 from test_training import config_dict
 
-from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.run_folders import RunError, RunFolder
-from emmi_gym.training.train import make_vec_env, model_of
+from emmi_gym.tools.training.config import parse_agent_config
+from emmi_gym.tools.training.run_folders import RunError, RunFolder
+from emmi_gym.tools.training.train import make_vec_env, model_of
 
 PPO_SMALL = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
 

@@ -22,13 +22,13 @@ from stable_baselines3 import PPO
 from test_imitation import CONFIG as CLONE_CONFIG
 from test_training import config_dict
 
-from emmi_gym.cli import main
-from emmi_gym.inputs.paths import write_atomically
-from emmi_gym.training.callbacks import NonFiniteError
-from emmi_gym.training.config import parse_agent_config
-from emmi_gym.training.imitation import Demonstrations, clone_run
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.train import model_of, train
+from emmi_gym.formats.atomic_files import write_atomically
+from emmi_gym.tools.cli import main
+from emmi_gym.tools.training.callbacks import NonFiniteError
+from emmi_gym.tools.training.config import parse_agent_config
+from emmi_gym.tools.training.imitation import Demonstrations, clone_run
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.train import model_of, train
 
 PPO_SMALL = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
 
@@ -316,7 +316,7 @@ def test_a_run_killed_at_random_moments_resumes_to_a_loadable_model_whose_record
         argv = [
             sys.executable,
             "-m",
-            "emmi_gym.cli",
+            "emmi_gym.tools.cli",
             "train",
             str(tmp_path / "agent.yaml"),
             "--out",
@@ -364,8 +364,8 @@ def test_a_run_from_a_model_interrupted_and_resumed_records_each_part(finished, 
 
 
 def test_the_benchmark_refuses_a_run_folder_of_something_else_before_any_job(tmp_path):
-    from emmi_gym.training.benchmark import run_benchmark
-    from emmi_gym.training.run_folders import RunError
+    from emmi_gym.tools.training.benchmark import run_benchmark
+    from emmi_gym.tools.training.run_folders import RunError
 
     config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))
     taken = tmp_path / "runs" / "emmi_seed0"

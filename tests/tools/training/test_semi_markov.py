@@ -8,15 +8,15 @@ from gymnasium import spaces
 from stable_baselines3 import PPO
 from stable_baselines3.common.buffers import RolloutBuffer
 
-from emmi_gym.training.config import AgentConfigError, parse_agent_config
-from emmi_gym.training.semi_markov import (
+from emmi_gym.tools.training.config import AgentConfigError, parse_agent_config
+from emmi_gym.tools.training.semi_markov import (
     SemiMarkovDictRolloutBuffer,
     SemiMarkovDiscounts,
     SemiMarkovMaskableDictRolloutBuffer,
     SemiMarkovRolloutBuffer,
     rollout_buffer_class,
 )
-from emmi_gym.training.train import train
+from emmi_gym.tools.training.train import train
 
 GAMMA, UNIT = 0.9, 100
 
@@ -95,7 +95,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
     from sb3_contrib import MaskablePPO
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from emmi_gym.training.train import make_agent_env
+    from emmi_gym.tools.training.train import make_agent_env
 
     durations = []
 
@@ -115,7 +115,7 @@ def test_waypoint_agent_discounts_each_decision_by_its_duration(tmp_path):
 
 @pytest.mark.slow
 def test_train_command_uses_the_configured_discount_unit(tmp_path):
-    from emmi_gym.training.evaluate import evaluate_model
+    from emmi_gym.tools.training.evaluate import evaluate_model
 
     data = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 2}},
             "algorithm": "MaskablePPO", "hyperparameters": {"n_steps": 4, "batch_size": 4, "n_epochs": 1,

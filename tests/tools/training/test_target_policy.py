@@ -8,8 +8,8 @@ from gymnasium import spaces
 from sb3_contrib import MaskablePPO
 
 import emmi_gym
-from emmi_gym.training.config import AgentConfigError, parse_agent_config
-from emmi_gym.training.target_policy import TargetScoringPolicy
+from emmi_gym.tools.training.config import AgentConfigError, parse_agent_config
+from emmi_gym.tools.training.target_policy import TargetScoringPolicy
 
 gym.register_envs(emmi_gym)
 N_SLOTS, N_FEATURES, SIZE = 8, 8, 36

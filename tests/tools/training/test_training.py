@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import yaml
 
-from emmi_gym.cli import main
-from emmi_gym.experiments.episodes import GROUND_TRUTH
-from emmi_gym.experiments.loop_order import LOOP_ORDER_KEY
-from emmi_gym.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
-from emmi_gym.training.config import AgentConfigError, load_agent_config, parse_agent_config
-from emmi_gym.training.evaluate import evaluate_model
-from emmi_gym.training.run_folders import RunFolder
-from emmi_gym.training.train import make_agent_env, train, training_torch_threads
+from emmi_gym.tools.cli import main
+from emmi_gym.tools.experiments.episodes import GROUND_TRUTH
+from emmi_gym.tools.experiments.loop_order import LOOP_ORDER_KEY
+from emmi_gym.tools.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
+from emmi_gym.tools.training.config import AgentConfigError, load_agent_config, parse_agent_config
+from emmi_gym.tools.training.evaluate import evaluate_model
+from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.train import make_agent_env, train, training_torch_threads
 
 #: A small, fast world: a 2 x 2 generated lattice, 3 particles, 150-step episodes.
 FAST_ENV = {"particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 150}
@@ -80,7 +80,7 @@ def test_waypoint_agent_trains_with_masks_and_reports_the_loop_order(tmp_path):
 def interrupt_training_at(monkeypatch, timesteps: int):
     """Make training raise KeyboardInterrupt (as Ctrl-C does) once ``timesteps`` are trained; call the
     returned function to let it run on."""
-    from emmi_gym.training.train import AtomicCheckpointCallback
+    from emmi_gym.tools.training.train import AtomicCheckpointCallback
 
     original = AtomicCheckpointCallback._on_step
 
@@ -176,7 +176,7 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
     # code between fork and exec can deadlock in a process with threads (torch's, the kernel pool's).
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        process = subprocess.Popen([sys.executable, "-m", "emmi_gym.cli", "train", str(tmp_path / "agent.yaml"),
+        process = subprocess.Popen([sys.executable, "-m", "emmi_gym.tools.cli", "train", str(tmp_path / "agent.yaml"),
                                     "--out", str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                    text=True, start_new_session=True, env=dict(os.environ, PYTHONFAULTHANDLER="1"))
     finally:
@@ -232,7 +232,7 @@ def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monk
 
     from llvmlite.binding.ffi import ObjectRef
 
-    from emmi_gym.training.train import AtomicCheckpointCallback
+    from emmi_gym.tools.training.train import AtomicCheckpointCallback
 
     reported = []  # what would be printed as "Exception ignored on calling ctypes callback function"
 
@@ -270,7 +270,7 @@ def test_an_llvmlite_object_the_interrupt_left_half_built_is_not_printed_when_it
 
     from llvmlite.binding.ffi import ObjectRef
 
-    from emmi_gym.training.train import AtomicCheckpointCallback
+    from emmi_gym.tools.training.train import AtomicCheckpointCallback
 
     reported = []
 
@@ -445,7 +445,7 @@ def test_benchmark_summary_pairs_each_agent_with_the_baselines_on_the_same_episo
     """Two agents of one reward on episodes 10-12 beside a baseline: the summary's share of episodes that closed
     the loop first is the agents' mean share (not the share of agents with any), and the paired table gives
     each agent's mean episode-by-episode difference, averaged over the agents."""
-    from emmi_gym.training.benchmark import markdown, paired_with, summary
+    from emmi_gym.tools.training.benchmark import markdown, paired_with, summary
 
     def row(kind, variant, seed, episode, ate, first):
         return {"kind": kind, "variant": variant, "seed": seed, "episode_seed": episode, "ate": ate,
@@ -515,7 +515,7 @@ def test_a_benchmark_extended_to_a_larger_budget_and_stopped_early_trains_on_whe
 def test_saved_decisions_reads_a_model_s_count_and_names_a_file_without_one(tmp_path):
     import zipfile
 
-    from emmi_gym.training.run_folders.model_files import ModelFileError, saved_decisions
+    from emmi_gym.tools.training.run_folders.model_files import ModelFileError, saved_decisions
 
     with zipfile.ZipFile(tmp_path / "model.zip", "w") as archive:
         archive.writestr("data", '{"num_timesteps": 3072}')
@@ -573,7 +573,7 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
     read from the episode's own path."""
     import gymnasium as gym
 
-    from emmi_gym.experiments.ab import closed_loop_first, new_area_now
+    from emmi_gym.tools.experiments.ab import closed_loop_first, new_area_now
 
     env = gym.make("emmi_gym/LoopCorridor-v1", particles=3)
     env.reset(seed=0)
@@ -593,7 +593,7 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
 
 @pytest.mark.parametrize("policy, expected", [("close_loop_first", 1.0), ("explore_first", 0.0)])
 def test_the_last_steps_info_says_whether_the_episode_closed_the_loop_first(policy, expected):
-    from emmi_gym.policies import make_policy
+    from emmi_gym.tools.policies import make_policy
 
     env = make_agent_env("emmi_gym/LoopCorridor-v1", {"particles": 3, "max_decisions": 2})
     scripted = make_policy(policy)
@@ -616,7 +616,7 @@ def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisio
     import torch
     from stable_baselines3 import PPO
 
-    from emmi_gym.training.run_folders.model_files import ModelFileError
+    from emmi_gym.tools.training.run_folders.model_files import ModelFileError
 
     hyper = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
     first = train(parse_agent_config(config_dict("PPO", hyper=hyper)), tmp_path / "first", progress=False)

@@ -1,0 +1,104 @@
+"""Command-line arguments, checked when they are parsed: bounded argparse types (argparse names the option
+in its error), and the one-line message a command prints for bad input instead of a traceback."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from ...inputs.validation import MAX_EPISODES
+
+
+def integer(lo: int = 0, hi: int | None = None):
+    """An argparse type: a whole number in [lo, hi]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < lo or (hi is not None and value > hi):
+            bounds = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+            raise argparse.ArgumentTypeError(f"expected an integer {bounds}, got {text!r}")
+        return value
+    return parse
+
+
+def number(lo: float = 0.0, hi: float | None = None, unit: str = ""):
+    """An argparse type: a finite number above ``lo`` and at most ``hi``, in ``unit``."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > lo and (hi is None or value <= hi)):
+            bounds = f"in ({lo:g}, {hi:g}]" if hi is not None else f"above {lo:g}"
+            raise argparse.ArgumentTypeError(f"expected a finite number {bounds}{f' ({unit})' if unit else ''}, "
+                                             f"got {text!r}")
+        return value
+    return parse
+
+
+#: Seeds of numpy's generators, as the configurations bound them.
+SEED = integer(0, 2**32 - 1)
+#: A count of episodes.
+EPISODES = integer(1, MAX_EPISODES)
+
+
+def run_command(parser: argparse.ArgumentParser, command, argv=None) -> int:
+    """Parse ``argv`` with ``parser`` and return ``command(args)``; bad input (a ``ValueError``, such as the
+    package's :class:`~emmi_gym.inputs.errors.FieldError`, or an ``OSError``: a missing file, a folder that cannot be
+    written) ends the program with its one-line message and exit status 2, not a traceback."""
+    args = parser.parse_args(argv)
+    try:
+        return command(args)
+    except (ValueError, OSError) as exc:
+        parser.exit(2, f"{parser.prog}: error: {exc}\n")
+
+
+def add_workers(parser: argparse.ArgumentParser) -> None:
+    """``--workers N``, in every command the number of local worker processes (default one per core)."""
+    parser.add_argument("--workers", type=integer(1), default=None, metavar="N",
+                        help="worker processes (default one per core)")
+
+
+def add_quiet(parser: argparse.ArgumentParser) -> None:
+    """``--quiet``, in every command with a progress bar: no progress bar."""
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_seed_range(parser: argparse.ArgumentParser, seeds: int, first_seed: int = 0, least: int = 1) -> None:
+    """``--seeds N`` and ``--first-seed S``, in every command the seeds S, S + 1, ..., S + N - 1 (``--seeds``
+    is a count everywhere; ``least`` the fewest the command takes)."""
+    parser.add_argument("--seeds", type=integer(least, MAX_EPISODES), default=seeds, metavar="N",
+                        help=f"number of seeds (default {seeds})")
+    parser.add_argument("--first-seed", type=SEED, default=first_seed, metavar="S",
+                        help=f"the first seed (default {first_seed})")
+
+
+def seed_range(args: argparse.Namespace) -> range:
+    """The seeds of :func:`add_seed_range`'s options."""
+    return range(args.first_seed, args.first_seed + args.seeds)
+
+
+#: What ``--ray`` given without an address means: Ray's own choice, the cluster named by the
+#: ``RAY_ADDRESS`` environment variable, else a Ray instance started on this machine.
+RAY_DEFAULT_ADDRESS = "env"
+
+
+def add_ray(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--ray [ADDRESS]``, in every command: run on Ray, at ADDRESS (see :func:`ray_address`)."""
+    parser.add_argument("--ray", nargs="?", const=RAY_DEFAULT_ADDRESS, default=None, metavar="ADDRESS",
+                        help=f"{what}, on the cluster at ADDRESS ('local': a Ray instance on this machine; no "
+                             "ADDRESS: the cluster of RAY_ADDRESS, else a local instance)")
+
+
+def ray_address(args: argparse.Namespace) -> str | None:
+    """The cluster address :func:`add_ray`'s option asks for (``emmi_gym.concurrency.connect_ray``'s argument):
+    ``None`` without ``--ray`` or without an address, which ``connect_ray`` reads as Ray's default."""
+    return None if args.ray in (None, RAY_DEFAULT_ADDRESS) else args.ray
+
+
+def add_torch_threads(parser: argparse.ArgumentParser, default: str) -> None:
+    """``--torch-threads N``: the learner's torch threads (``default`` says what it is without the option)."""
+    parser.add_argument("--torch-threads", type=integer(1), default=None, metavar="N",
+                        help=f"torch threads of the learner (default {default})")

@@ -1,0 +1,107 @@
+"""``emmi-gym evaluate``: a trained model on held-out episodes, beside the scripted policies if asked
+(:mod:`emmi_gym.tools.training.evaluate`)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ...env.seeds import HELD_OUT_SEED
+from . import arguments
+
+
+def add_parser(subparsers) -> None:
+    ev = subparsers.add_parser("evaluate", help="run a trained model on held-out episodes: return and "
+                                                "ground-truth metrics, beside the scripted baselines on the same "
+                                                "episodes if asked")
+    ev.add_argument("model", nargs="?", default=None,
+                    help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
+    ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
+    ev.add_argument("--episodes", type=arguments.EPISODES, default=10,
+                    help="episodes to play (default 10; on a map set, its first maps, one episode each)")
+    ev.add_argument("--seed", type=arguments.SEED, default=HELD_OUT_SEED,
+                    help=f"first episode's seed (default {HELD_OUT_SEED}: the held-out seeds)")
+    ev.add_argument("--world", default=None,
+                    help="a world, map set, folder or glob to play on (a set's first maps, one episode each; "
+                         "default: the run's evaluation env)")
+    ev.add_argument("--baselines", nargs="*", default=[], metavar="POLICY",
+                    help="scripted policies played on the same episodes, paired with the model, with 95%% "
+                         "intervals (e.g. frontier active_loop_closing)")
+    arguments.add_workers(ev)
+    ev.add_argument("--out", default=None, metavar="DIR",
+                    help="with --world or --baselines: write episodes.csv, summary.md, front.png (map quality "
+                         "against robot time) and maps.png (one episode's maps, where the model went back) here")
+    arguments.add_quiet(ev)
+    ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
+    arguments.add_torch_threads(ev, "1: the env's kernels need the cores")
+    ev.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ...inputs.user_paths import output_folder
+    from ..experiments.episodes import summarise
+    from ..training.evaluate import evaluate_model, format_table
+    from ..training.run_folders import RunFolder
+    from ..training.train import set_torch_threads
+
+    set_torch_threads(args.torch_threads)
+    if args.video is not None:
+        output_folder(args.video, "--video")
+    model, name = _model_to_evaluate(args)
+    config = RunFolder.config_of_model(model)  # loaded once: checking it makes the env
+    if args.world is not None or args.baselines:
+        return _evaluate_beside_baselines(args, model, name, config)
+    print(f"evaluating on {config.env_id} ({config.eval_env_kwargs}), episodes seeded from {args.seed}")
+    rows = evaluate_model(model, args.episodes, args.seed, args.video, config=config)
+    print(format_table(rows))
+    print("\nmean over episodes:")
+    print(format_table([summarise(rows)]))
+    if args.video:
+        print(f"videos in {args.video}")
+    return 0
+
+
+def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
+    """The model file that ``evaluate`` plays, and the name its rows carry."""
+    if (args.model is None) == (args.pretrained is None):
+        raise ValueError("give a model .zip or --pretrained NAME (one of them)")
+    if args.pretrained is not None:
+        from .. import pretrained
+
+        return pretrained.model_path(args.pretrained), args.pretrained
+    if not Path(args.model).is_file():
+        raise FileNotFoundError(f"no model at {args.model}")
+    return Path(args.model), "agent"
+
+
+def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:
+    from ...formats.atomic_files import write_text_atomically
+    from ...inputs.user_paths import output_folder
+    from ..experiments.comparison import markdown_table, policy_means
+    from ..experiments.report import write_csv
+    from ..policies import POLICY_NAMES
+    from ..training.evaluate import OWN_WORLD, compare_model, format_table, write_figures
+
+    if args.video:
+        raise ValueError("--video records the model alone: leave out --world and --baselines")
+    unknown = sorted(set(args.baselines) - set(POLICY_NAMES))
+    if unknown:
+        raise ValueError(f"--baselines: unknown {unknown}; choose from {list(POLICY_NAMES)}")
+    world = OWN_WORLD if args.world is None else args.world
+    out = None if args.out is None else output_folder(args.out)
+    print(f"evaluating {name} on {config.env_id} ({config.eval_env_kwargs}"
+          f"{'' if args.world is None else f', world {args.world}'}) beside {args.baselines or 'no baseline'}: "
+          f"{args.episodes} episodes, seeds from {args.seed}")
+    rows = compare_model(model, name, world, args.episodes, args.seed, args.baselines, workers=args.workers,
+                         progress=not args.quiet)
+    means = policy_means(rows)
+    print(format_table(means))
+    tables = [markdown_table(rows, name, baseline, f"{name} - {baseline}") for baseline in args.baselines]
+    for table in tables:
+        print("\n" + table)
+    if out is not None:
+        write_csv(out / "episodes.csv", rows)
+        write_text_atomically(out / "summary.md", "\n\n".join([format_table(means), *tables]) + "\n")
+        figures = write_figures(rows, model, name, args.baselines, out)
+        print(f"\nwrote {', '.join(str(p) for p in [out / 'episodes.csv', out / 'summary.md', *figures])}")
+    return 0

@@ -1,0 +1,167 @@
+"""Reward alignment: does a reward pay more to the policy that ends with the better map?
+
+A learner comes to prefer what earns most, so a reward can only teach mapping better where mapping
+better pays. The scripted policies are played on the same (world, seed) episodes with every step's
+reward components kept (:func:`~emmi_gym.tools.experiments.comparison.compare_on`); each reward variant,
+time cost and discount is then applied to the kept steps, and compared with the ground truth each
+episode ended with:
+
+- the mean discounted return of each policy;
+- **agreement**: over every episode and every pair of policies whose final maps differ, the share
+  of pairs where the policy with the better map (higher accuracy against the oracle map, lower
+  ATE) also earned the higher return;
+- **within-episode correlation**: Pearson's r between return and final map quality after
+  subtracting each episode's mean over the policies (what varies between policies on the same
+  plan, not between easy and hard plans);
+- **preferred**: the policy with the highest mean return: where on the front of map quality
+  against robot time the reward points a learner.
+
+A reward's scale and the time cost act only through their ratio, so varying the time cost covers
+the scales too. Discounts follow :mod:`emmi_gym.tools.training.semi_markov`: ``gamma`` per decision or
+per ``unit`` simulator steps of robot time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+
+#: Final map qualities compared, each with the sign that makes higher better.
+QUALITIES = {"oracle_accuracy": 1.0, "ate": -1.0}
+
+
+@dataclass(frozen=True)
+class Discount:
+    """``gamma`` per decision (``unit`` None) or per ``unit`` simulator steps; gamma 1: undiscounted."""
+
+    gamma: float = 1.0
+    unit: int | None = None
+
+    @classmethod
+    def parse(cls, text: str) -> Discount:
+        """``"none"``, ``"0.95"`` (per decision) or ``"0.9@100"`` (per 100 simulator steps)."""
+        try:
+            if text == "none":
+                return cls()
+            gamma, _, unit = text.partition("@")
+            discount = cls(float(gamma), int(unit) if unit else None)
+        except ValueError:
+            raise ValueError(f"a discount is 'none', GAMMA or GAMMA@SIM_STEPS (e.g. 0.9@100), got {text!r}") from None
+        if not (0.0 < discount.gamma <= 1.0) or (discount.unit is not None and discount.unit < 1):
+            raise ValueError(f"a discount's gamma is in (0, 1] and its unit at least 1 step, got {text!r}")
+        return discount
+
+    @property
+    def label(self) -> str:
+        if self.gamma == 1.0:
+            return "none"
+        return f"{self.gamma:g} per decision" if self.unit is None else f"{self.gamma:g} per {self.unit} steps"
+
+    def weights(self, durations: np.ndarray) -> np.ndarray:
+        """The discount of each step, given every step's duration in simulator steps."""
+        if self.unit is None:
+            return self.gamma ** np.arange(len(durations), dtype=np.float64)
+        elapsed = np.concatenate([[0.0], np.cumsum(durations, dtype=np.float64)[:-1]])
+        return self.gamma ** (elapsed / self.unit)
+
+
+def discounted_return(steps: list[dict], variant: str, time_cost: float, discount: Discount) -> float:
+    """What ``variant`` (at its default scale), the time cost per simulator step and the collision cost
+    paid over an episode's kept ``steps``, discounted."""
+    if not steps:
+        return 0.0
+    durations = np.array([step["duration"] for step in steps], dtype=np.float64)
+    rewards = np.array([step[variant] + step["collision"] for step in steps]) - time_cost * durations
+    return float(np.dot(discount.weights(durations), rewards))
+
+
+def _episodes(rows: list[dict]) -> dict[tuple, dict[str, dict]]:
+    """Rows grouped by (world, seed), then by policy."""
+    grouped: dict[tuple, dict[str, dict]] = {}
+    for row in rows:
+        grouped.setdefault((row["world"], row["seed"]), {})[row["policy"]] = row
+    return grouped
+
+
+def _agreement(episodes, returns, quality: str) -> tuple[int, int]:
+    """(pairs where the better map earned more, pairs whose maps differ)."""
+    sign, agree, pairs = QUALITIES[quality], 0, 0
+    for key, by_policy in episodes.items():
+        for p, q in combinations(sorted(by_policy), 2):
+            better = sign * (by_policy[p][quality] - by_policy[q][quality])
+            if not np.isfinite(better) or better == 0:
+                continue
+            pairs += 1
+            agree += (returns[key, p] - returns[key, q]) * better > 0
+    return agree, pairs
+
+
+def _within_correlation(episodes, returns, quality: str) -> float:
+    """Pearson's r of return and quality, each centred on its episode's mean over the policies."""
+    xs, ys = [], []
+    for key, by_policy in episodes.items():
+        if len(by_policy) < 2:
+            continue
+        r = np.array([returns[key, p] for p in by_policy])
+        q = QUALITIES[quality] * np.array([by_policy[p][quality] for p in by_policy], dtype=np.float64)
+        if not np.all(np.isfinite(q)):
+            continue
+        xs.extend(r - r.mean())
+        ys.extend(q - q.mean())
+    x, y = np.array(xs), np.array(ys)
+    if x.size < 3 or x.std() == 0 or y.std() == 0:
+        return math.nan
+    return float(np.corrcoef(x, y)[0, 1])
+
+
+def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple(QUALITIES)) -> list[dict]:
+    """One result per (variant, time cost, discount) over the episodes of ``rows`` (rows with ``steps``):
+    each policy's mean return, the agreement and within-episode correlation for each quality, and
+    the preferred policy."""
+    episodes = _episodes(rows)
+    policies = list(dict.fromkeys(row["policy"] for row in rows))
+    results = []
+    for variant in variants:
+        for time_cost in time_costs:
+            for discount in discounts:
+                returns = {(key, p): discounted_return(row["steps"], variant, time_cost, discount)
+                           for key, by_policy in episodes.items() for p, row in by_policy.items()}
+                means = {p: float(np.mean([v for (_, q), v in returns.items() if q == p])) for p in policies}
+                result = {"reward": variant, "time_cost": time_cost, "discount": discount.label,
+                          **{f"return {p}": means[p] for p in policies},
+                          "prefers": max(means, key=means.get)}
+                for quality in qualities:
+                    agree, pairs = _agreement(episodes, returns, quality)
+                    result[f"agree {quality}"] = f"{agree}/{pairs}"
+                    result[f"r {quality}"] = _within_correlation(episodes, returns, quality)
+                results.append(result)
+    return results
+
+
+def policy_front(rows: list[dict], qualities=tuple(QUALITIES)) -> list[dict]:
+    """Each policy's mean final map quality and robot time (simulator steps): the front the rewards choose on."""
+    policies = list(dict.fromkeys(row["policy"] for row in rows))
+    return [{"policy": p, **{q: float(np.nanmean([r[q] for r in rows if r["policy"] == p])) for q in qualities},
+             "sim_steps": float(np.mean([r["sim_steps"] for r in rows if r["policy"] == p]))} for p in policies]
+
+
+def markdown(results: list[dict], front: list[dict], title: str) -> str:
+    """The front and the alignment results as markdown tables."""
+    lines = [title, "", "| policy | " + " | ".join(k for k in front[0] if k != "policy") + " |",
+             "| --- |" + " --- |" * (len(front[0]) - 1)]
+    lines += ["| " + " | ".join([row["policy"]] + [f"{v:.3f}" if k != "sim_steps" else f"{v:.0f}"
+                                                   for k, v in row.items() if k != "policy"]) + " |" for row in front]
+    columns = list(results[0])
+    lines += ["", "| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
+    lines += ["| " + " | ".join(f"{row[c]:g}" if c == "time_cost" else _format(row[c]) for c in columns) + " |"
+              for row in results]
+    return "\n".join(lines)
+
+
+def _format(value) -> str:
+    if isinstance(value, float):
+        return "-" if value != value else f"{value:+.3f}" if abs(value) < 100 else f"{value:+.0f}"
+    return str(value)
