@@ -1,6 +1,8 @@
 """Assertions and paths shared by the test modules (``pythonpath = ["tests"]`` in pyproject.toml makes this
 module importable from every folder of tests/)."""
 
+import signal
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -40,3 +42,16 @@ def independent_loops(world, resolution=0.1, min_span=3.0):
     spans = [((s[0].stop - s[0].start) * resolution, (s[1].stop - s[1].start) * resolution)
              for k, s in enumerate(ndimage.find_objects(labels), start=1) if k != outside]
     return sum(1 for h, w in spans if h >= min_span and w >= min_span)
+
+
+def start_as_a_terminal_would(args, **kwargs) -> subprocess.Popen:
+    """``subprocess.Popen(args, **kwargs)`` with Ctrl-C (SIGINT) raising KeyboardInterrupt in the child, as in a
+    terminal's foreground job, however the suite was started: a shell runs background jobs with SIGINT ignored,
+    and a child inherits an ignored signal, so the child starts while this process handles SIGINT (a handled
+    signal is reset to the default at exec). Not with ``preexec_fn``: Python code between fork and exec can
+    deadlock in a process with threads (torch's, the kernel pool's)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return subprocess.Popen(args, **kwargs)
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import test_run_safety
 import yaml
+from helpers import start_as_a_terminal_would
 from test_imitation import CONFIG as CLONE_CONFIG
 from test_rollout_workers import MASKED, agent
 from test_run_safety import PPO_SMALL, cli
@@ -163,12 +164,16 @@ def test_ctrl_c_in_a_pool_stops_every_job_without_a_traceback(tmp_path):
     script = ("import time\nfrom emmi_gym.concurrency.parallel import run_in_processes\n"
               "try:\n    run_in_processes(time.sleep, [60] * 6, workers=2, progress=False)\n"
               "except KeyboardInterrupt:\n    print('stopped', flush=True)\n")
-    process = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, start_new_session=True)
-    time.sleep(5)  # the pool's workers started, each in a job
-    started = time.monotonic()
-    os.kill(process.pid, signal.SIGINT)
-    out, err = process.communicate(timeout=30)
+    process = start_as_a_terminal_would([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        time.sleep(5)  # the pool's workers started, each in a job
+        started = time.monotonic()
+        os.kill(process.pid, signal.SIGINT)
+        out, err = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
     assert out.strip() == "stopped" and "Traceback" not in err and time.monotonic() - started < 20
 
 

@@ -7,6 +7,7 @@ import os
 import numpy as np
 import pytest
 import yaml
+from helpers import start_as_a_terminal_would
 
 from emmi_gym.tools.cli import main
 from emmi_gym.tools.experiments.episodes import GROUND_TRUTH
@@ -171,16 +172,10 @@ def test_sigint_with_worker_processes_ends_with_a_whole_checkpoint(whole_group, 
                        n_envs=2, vec_env=vec_env, checkpoint_freq=32)
     (tmp_path / "agent.yaml").write_text(yaml.safe_dump(data))
     run = tmp_path / "run"
-    # a shell runs background jobs with SIGINT ignored, and a child inherits an ignored signal: start it while
-    # this process handles SIGINT (handled signals are reset to the default at exec). Not with preexec_fn: Python
-    # code between fork and exec can deadlock in a process with threads (torch's, the kernel pool's).
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        process = subprocess.Popen([sys.executable, "-m", "emmi_gym.tools.cli", "train", str(tmp_path / "agent.yaml"),
-                                    "--out", str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                   text=True, start_new_session=True, env=dict(os.environ, PYTHONFAULTHANDLER="1"))
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    process = start_as_a_terminal_would([sys.executable, "-m", "emmi_gym", "train", str(tmp_path / "agent.yaml"),
+                                         "--out", str(run), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                        text=True, start_new_session=True,
+                                        env=dict(os.environ, PYTHONFAULTHANDLER="1"))
     try:
         waited = 0.0
         while not list((run / "checkpoints").glob("model_*_steps.zip")) and process.poll() is None and waited < 300:
