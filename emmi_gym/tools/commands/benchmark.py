@@ -1,5 +1,5 @@
 """``emmi-gym benchmark``: the reward benchmark, an agent per reward and seed beside the scripted
-baselines (:mod:`emmi_gym.tools.training.benchmark`)."""
+baselines (:mod:`emmi_gym.tools.training.reward_benchmark`)."""
 
 from __future__ import annotations
 
@@ -50,8 +50,8 @@ def run(args: argparse.Namespace) -> int:
     from ...concurrency.ray_cluster import LOCAL
     from ...env.config import REWARDS
     from ...inputs.user_paths import output_folder
-    from ..training.benchmark import run_benchmark, write_benchmark
     from ..training.config import load_agent_config
+    from ..training.reward_benchmark import run_benchmark, write_benchmark
 
     bad = sorted(set(args.rewards) - set(REWARDS))
     if bad:

@@ -6,8 +6,8 @@ import math
 from emmi_gym.tools.experiments.comparison import markdown_table
 from emmi_gym.tools.experiments.directions import BETTER, HIGHER, better_side
 from emmi_gym.tools.experiments.report import SUMMARY_COLUMNS, markdown_summary
-from emmi_gym.tools.training.benchmark import markdown
 from emmi_gym.tools.training.evaluate import format_table
+from emmi_gym.tools.training.reward_benchmark import markdown
 
 
 def _row_cells(table: str, label: str) -> list[str]:

@@ -123,7 +123,7 @@ def test_init_from_another_policy_class_is_refused_and_a_model_without_its_confi
 
 # ---------------------------------------------------------------- the benchmark
 def test_the_benchmark_checks_every_argument_before_the_first_agent(tmp_path):
-    from emmi_gym.tools.training.benchmark import make_jobs
+    from emmi_gym.tools.training.reward_benchmark import make_jobs
 
     config = parse_agent_config(dict(CLONE_CONFIG, policy="MultiInputPolicy"))
     with pytest.raises(ValueError, match="--rewards: emmi given more than once"):
@@ -134,7 +134,7 @@ def test_the_benchmark_checks_every_argument_before_the_first_agent(tmp_path):
 
 
 def test_the_benchmark_refuses_to_report_a_larger_run_under_a_smaller_budget(tmp_path):
-    from emmi_gym.tools.training.benchmark import make_jobs, run_benchmark
+    from emmi_gym.tools.training.reward_benchmark import make_jobs, run_benchmark
     from emmi_gym.tools.training.run_folders import RunError
 
     config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))

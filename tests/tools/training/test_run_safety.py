@@ -364,7 +364,7 @@ def test_a_run_from_a_model_interrupted_and_resumed_records_each_part(finished, 
 
 
 def test_the_benchmark_refuses_a_run_folder_of_something_else_before_any_job(tmp_path):
-    from emmi_gym.tools.training.benchmark import run_benchmark
+    from emmi_gym.tools.training.reward_benchmark import run_benchmark
     from emmi_gym.tools.training.run_folders import RunError
 
     config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=16))

@@ -12,9 +12,9 @@ from helpers import start_as_a_terminal_would
 from emmi_gym.tools.cli import main
 from emmi_gym.tools.experiments.episodes import GROUND_TRUTH
 from emmi_gym.tools.experiments.loop_order import LOOP_ORDER_KEY
-from emmi_gym.tools.training.benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
 from emmi_gym.tools.training.config import AgentConfigError, load_agent_config, parse_agent_config
 from emmi_gym.tools.training.evaluate import evaluate_model
+from emmi_gym.tools.training.reward_benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
 from emmi_gym.tools.training.run_folders import RunFolder
 from emmi_gym.tools.training.train import make_agent_env, train, training_torch_threads
 
@@ -440,7 +440,7 @@ def test_benchmark_summary_pairs_each_agent_with_the_baselines_on_the_same_episo
     """Two agents of one reward on episodes 10-12 beside a baseline: the summary's share of episodes that closed
     the loop first is the agents' mean share (not the share of agents with any), and the paired table gives
     each agent's mean episode-by-episode difference, averaged over the agents."""
-    from emmi_gym.tools.training.benchmark import markdown, paired_with, summary
+    from emmi_gym.tools.training.reward_benchmark import markdown, paired_with, summary
 
     def row(kind, variant, seed, episode, ate, first):
         return {"kind": kind, "variant": variant, "seed": seed, "episode_seed": episode, "ate": ate,
