@@ -21,6 +21,7 @@ import zlib
 from contextlib import contextmanager
 from pathlib import Path
 
+from .... import MOVED_TO_TOOLS
 from ....inputs.errors import FieldError
 from ....inputs.json_files import parse_json
 from ....inputs.user_paths import input_file
@@ -31,9 +32,6 @@ from ..config import ALGORITHMS, algorithm_class
 MAX_MODEL_BYTES = 256 * 2**20
 MAX_DATA_BYTES = 16 * 2**20
 MAX_MEMBERS = 64
-#: Where the tools' modules were before 0.3.0 (they moved under ``emmi_gym.tools``): a model saved then names
-#: its policy and rollout-buffer classes by the old module, e.g. ``emmi_gym.training.target_policy``.
-MOVED_MODULES = {"emmi_gym." + "training.": "emmi_gym.tools.training."}
 
 
 class ModelFileError(FieldError):
@@ -41,10 +39,12 @@ class ModelFileError(FieldError):
 
 
 def current_module(module: str) -> str:
-    """The name the module ``module`` has now (a model saved before 0.3.0 names its old one)."""
-    for old, new in MOVED_MODULES.items():
-        if module.startswith(old):
-            return new + module[len(old):]
+    """The name the module ``module`` has now: a model saved before 0.3.0 names its policy and rollout-buffer
+    classes by the tools' old modules (``emmi_gym.training.target_policy``), before they moved under
+    ``emmi_gym.tools`` (:data:`emmi_gym.MOVED_TO_TOOLS`)."""
+    parts = module.split(".")
+    if len(parts) > 1 and parts[0] == "emmi_gym" and parts[1] in MOVED_TO_TOOLS:
+        return ".".join(["emmi_gym", "tools", *parts[1:]])
     return module
 
 
@@ -181,7 +181,7 @@ def load_model_file(path, algorithm: str, **kwargs):
     ``load`` (with ``env`` rollout workers, a model that collects from them). What SB3 still finds wrong, and
     weights that are not all finite (which would act as a torch error printing the tensors), are a
     :class:`ModelFileError` naming the file. A model saved before 0.3.0 loads its classes from their modules'
-    current names (:data:`MOVED_MODULES`)."""
+    current names (:func:`current_module`)."""
     from ..callbacks import first_non_finite
     from ..rollout_workers import algorithm_for
 
