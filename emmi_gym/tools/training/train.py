@@ -3,7 +3,7 @@ periodic held-out evaluation with the ground-truth metrics, checkpoints, resumin
 
 The run folder, its files and what a run checks before it writes anything (a folder in use, a resumed
 configuration, the model it starts from) are :class:`~emmi_gym.tools.training.run_folders.RunFolder`'s; every file
-is written under a temporary name and renamed into place (:func:`~emmi_gym.inputs.user_paths.write_atomically`),
+is written under a temporary name and renamed into place (:func:`~emmi_gym.formats.atomic_files.write_atomically`),
 and training stops at the first non-finite number (:class:`~emmi_gym.tools.training.callbacks.StopOnNonFinite`),
 so no file of a run is ever half written or holds NaN weights.
 """
@@ -26,6 +26,7 @@ from pathlib import Path
 import gymnasium as gym
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+from torch.optim.optimizer import register_optimizer_step_post_hook, register_optimizer_step_pre_hook
 
 from ...concurrency.interrupts import RunStopped
 from ...concurrency.parallel import ActorFailed, leave_terminal_signals, one_kernel_thread
@@ -154,20 +155,38 @@ def interrupts_remembered(received: list):
     as an "Exception ignored" traceback), so a Ctrl-C that arrived there was lost and
     training went on. :class:`StopOnInterrupt` raises it again at the next step;
     :func:`unraisable_interrupts_quiet` keeps what C code discarded from being printed.
+
+    A Ctrl-C that arrives inside a torch optimiser's step is held until the step ends (global step
+    hooks): Adam creates a parameter's moment estimates one after the other at its first step, and
+    a checkpoint saved between the two cannot be resumed (``KeyError: 'exp_avg_sq'`` at the next
+    step); between steps the weights and the optimiser's state agree.
     """
     if not _handles_ctrl_c():
         yield
         return
+    stepping = []
 
     def remember(signum, frame):
         received.append(True)
-        raise KeyboardInterrupt
+        if not stepping:
+            raise KeyboardInterrupt
 
+    def step_starts(optimizer, args, kwargs):
+        stepping[:] = [True]
+
+    def step_ends(optimizer, args, kwargs):
+        stepping.clear()
+        if received:
+            raise KeyboardInterrupt
+
+    hooks = [register_optimizer_step_pre_hook(step_starts), register_optimizer_step_post_hook(step_ends)]
     previous = signal.signal(signal.SIGINT, remember)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        for hook in hooks:
+            hook.remove()
 
 
 @contextmanager

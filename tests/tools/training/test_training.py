@@ -213,6 +213,35 @@ def sigint_as_in_a_terminal():
     signal.signal(signal.SIGINT, previous)
 
 
+def test_a_ctrl_c_inside_an_optimiser_step_is_raised_once_the_step_ends(sigint_as_in_a_terminal):
+    """A SIGTERM that stopped a run while Adam was creating its moment estimates left a checkpoint
+    whose optimiser state lacked ``exp_avg_sq``: resuming it failed at the first step. The interrupt
+    is now held until the step ends, and the step is whole."""
+    import os
+    import signal
+
+    import torch
+
+    from emmi_gym.tools.training.train import interrupts_remembered
+
+    weights = [torch.nn.Parameter(torch.ones(3)) for _ in range(2)]
+    for weight in weights:
+        weight.grad = torch.ones(3)
+    optimizer = torch.optim.Adam(weights, lr=0.1)
+    ctrl_c = optimizer.register_step_pre_hook(lambda *_: os.kill(os.getpid(), signal.SIGINT))
+    received = []
+    with pytest.raises(KeyboardInterrupt), interrupts_remembered(received):
+        optimizer.step()
+    assert received == [True]
+    for weight in weights:
+        assert set(optimizer.state[weight]) == {"step", "exp_avg", "exp_avg_sq"}
+        assert optimizer.state[weight]["step"] == 1 and torch.all(weight < 1)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    ctrl_c.remove()
+    optimizer.step()  # no hook of the block is left behind to raise again
+    assert all(optimizer.state[weight]["step"] == 2 for weight in weights)
+
+
 @pytest.mark.slow
 def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monkeypatch, sigint_as_in_a_terminal):
     """A Ctrl-C that arrives while numba loads a kernel raises KeyboardInterrupt inside llvmlite's ctypes
