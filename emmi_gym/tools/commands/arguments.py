@@ -102,3 +102,19 @@ def add_torch_threads(parser: argparse.ArgumentParser, default: str) -> None:
     """``--torch-threads N``: the learner's torch threads (``default`` says what it is without the option)."""
     parser.add_argument("--torch-threads", type=integer(1), default=None, metavar="N",
                         help=f"torch threads of the learner (default {default})")
+
+
+def baseline_policies(names, option: str = "--baselines") -> list:
+    """The policies ``names`` stand for, to play beside trained agents: a scripted policy's name as it is, a shipped
+    agent's name (``emmi_gym.pretrained``) as a :class:`~emmi_gym.tools.training.evaluate.TrainedAgent` of its
+    model; a ``ValueError`` naming ``option``, what is unknown and the choices."""
+    from .. import pretrained
+    from ..policies import POLICY_NAMES
+    from ..training.evaluate import TrainedAgent
+
+    shipped = pretrained.names()
+    unknown = sorted(set(names) - set(POLICY_NAMES) - set(shipped))
+    if unknown:
+        raise ValueError(f"{option}: unknown {unknown}; choose scripted policies from {list(POLICY_NAMES)} or "
+                         f"shipped agents from {shipped}")
+    return [TrainedAgent(str(pretrained.model_path(name)), name) if name in shipped else name for name in names]

@@ -27,8 +27,9 @@ def add_parser(subparsers) -> None:
                        help=f"first held-out episode's seed, for the agents and the baselines alike (default "
                             f"{HELD_OUT_SEED}: the held-out seeds)")
     bench.add_argument("--baselines", nargs="*", default=["frontier", "random"], metavar="POLICY",
-                       help="scripted policies evaluated on the same episodes (default frontier random; none: "
-                            "give the option with no names)")
+                       help="scripted policies or shipped agents evaluated on the same episodes, paired with the "
+                            "agents (final maps, and at equal robot time) (default frontier random; none: give the "
+                            "option with no names)")
     bench.add_argument("--init-from", default=None, metavar="MODEL",
                        help="every agent starts from this model's weights (as 'train --init-from'), e.g. a "
                             "clone of a scripted policy from 'emmi-gym clone'")
@@ -62,8 +63,9 @@ def run(args: argparse.Namespace) -> int:
         args.timesteps = config.total_timesteps
     started = time.perf_counter()
     ray_address = None if args.ray is None else arguments.ray_address(args) or LOCAL  # LOCAL: Ray's default too
+    baselines = arguments.baseline_policies(args.baselines)
     results = run_benchmark(config, args.rewards, arguments.seed_range(args), args.timesteps, args.episodes,
-                            args.baselines, args.out, workers=args.workers, ray_address=ray_address,
+                            baselines, args.out, workers=args.workers, ray_address=ray_address,
                             progress=not args.quiet, init_from=args.init_from,
                             allow_no_training=args.allow_no_training, eval_seed=args.eval_seed, report=print)
     elapsed = time.perf_counter() - started
@@ -76,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
               f"({'Ray' if args.ray else 'local processes'}"
               f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}). "
               f"Mean [95% t-interval]: over agents for trained variants (one agent: its mean), over episodes "
-              f"for scripted ones.")
+              f"for the baselines.")
     files = write_benchmark(results, args.out, header)
     print(files["summary"].read_text())
     for path in files.values():

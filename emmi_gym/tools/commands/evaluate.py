@@ -25,12 +25,14 @@ def add_parser(subparsers) -> None:
                     help="a world, map set, folder or glob to play on (a set's first maps, one episode each; "
                          "default: the run's evaluation env)")
     ev.add_argument("--baselines", nargs="*", default=[], metavar="POLICY",
-                    help="scripted policies played on the same episodes, paired with the model, with 95%% "
-                         "intervals (e.g. frontier active_loop_closing)")
+                    help="scripted policies or shipped agents played on the same episodes, paired with the model "
+                         "(final maps, and at equal robot time), with 95%% intervals (e.g. frontier "
+                         "active_loop_closing explore_plans_emmi)")
     arguments.add_workers(ev)
     ev.add_argument("--out", default=None, metavar="DIR",
-                    help="with --world or --baselines: write episodes.csv, summary.md, front.png (map quality "
-                         "against robot time) and maps.png (one episode's maps, where the model went back) here")
+                    help="with --world or --baselines: write episodes.csv, traces.csv (the scores after every "
+                         "decision), summary.md, front.png (map quality against robot time) and maps.png (one "
+                         "episode's maps, where the model went back) here")
     arguments.add_quiet(ev)
     ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
     arguments.add_torch_threads(ev, "1: the env's kernels need the cores")
@@ -79,29 +81,36 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
     from ...inputs.user_paths import output_folder
     from ..experiments.comparison import markdown_table, policy_means
     from ..experiments.report import write_csv
-    from ..policies import POLICY_NAMES
+    from ..experiments.robot_time import at_equal_robot_time, trace_rows, without_traces
     from ..training.evaluate import OWN_WORLD, compare_model, format_table, write_figures
 
     if args.video:
         raise ValueError("--video records the model alone: leave out --world and --baselines")
-    unknown = sorted(set(args.baselines) - set(POLICY_NAMES))
-    if unknown:
-        raise ValueError(f"--baselines: unknown {unknown}; choose from {list(POLICY_NAMES)}")
+    baselines = arguments.baseline_policies(args.baselines)
+    for baseline in baselines:
+        if not isinstance(baseline, str):
+            baseline.check_plays_in(config, "--baselines")
     world = OWN_WORLD if args.world is None else args.world
     out = None if args.out is None else output_folder(args.out)
     print(f"evaluating {name} on {config.env_id} ({config.eval_env_kwargs}"
           f"{'' if args.world is None else f', world {args.world}'}) beside {args.baselines or 'no baseline'}: "
           f"{args.episodes} episodes, seeds from {args.seed}")
-    rows = compare_model(model, name, world, args.episodes, args.seed, args.baselines, workers=args.workers,
+    rows = compare_model(model, name, world, args.episodes, args.seed, baselines, workers=args.workers,
                          progress=not args.quiet)
-    means = policy_means(rows)
+    means = policy_means(without_traces(rows))
     print(format_table(means))
     tables = [markdown_table(rows, name, baseline, f"{name} - {baseline}") for baseline in args.baselines]
+    tables += [markdown_table(at_equal_robot_time(rows, name, baseline), name, baseline,
+                              f"{name} - {baseline} at equal robot time (each pair read at the robot time the "
+                              f"shorter episode took, the longer one's scores linear between its decisions)")
+               for baseline in args.baselines]
     for table in tables:
         print("\n" + table)
     if out is not None:
-        write_csv(out / "episodes.csv", rows)
-        write_text_atomically(out / "summary.md", "\n\n".join([format_table(means), *tables]) + "\n")
-        figures = write_figures(rows, model, name, args.baselines, out)
-        print(f"\nwrote {', '.join(str(p) for p in [out / 'episodes.csv', out / 'summary.md', *figures])}")
+        files = [out / "episodes.csv", out / "traces.csv", out / "summary.md"]
+        write_csv(files[0], without_traces(rows))
+        write_csv(files[1], trace_rows(rows))
+        write_text_atomically(files[2], "\n\n".join([format_table(means), *tables]) + "\n")
+        files += write_figures(rows, model, name, baselines, out)
+        print(f"\nwrote {', '.join(str(p) for p in files)}")
     return 0

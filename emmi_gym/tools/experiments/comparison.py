@@ -29,6 +29,7 @@ from ..policies import make_policy
 from .episodes import PolicyActor, play_episode, summarise
 from .intervals import difference_interval, measure_interval
 from .loop_order import LOOP_ORDER_KEY, LoopOrderInfo
+from .robot_time import TRACE
 
 #: The scores compared, with their labels.
 SCORES = {"oracle_accuracy": "accuracy against the oracle map", "wall_consistency": "wall consistency",
@@ -62,18 +63,19 @@ def make_actor(policy):
 
 
 def play_on_world(world, seed: int, policy, settings: ComparisonSettings = ComparisonSettings(),
-                  keep_maps: bool = False, keep_steps: bool = False) -> dict:
+                  keep_maps: bool = False, keep_steps: bool = False, keep_trace: bool = False) -> dict:
     """One episode of ``policy`` (a scripted policy's name or an object with ``make_actor()``) on ``world`` with
     ``seed``: its final scores (with ``keep_maps``, the expected map, the oracle map and the grid's
-    extent; with ``keep_steps``, every step's reward components, see
-    :func:`emmi_gym.tools.experiments.episodes.play_episode`)."""
+    extent; with ``keep_steps``, every step's reward components; with ``keep_trace``, the scores after
+    every decision: see :func:`emmi_gym.tools.experiments.episodes.play_episode`)."""
     env = settings.env_on(world)
     core = env.unwrapped
-    scores = play_episode(env, make_actor(policy), seed, keep_steps=keep_steps)
+    scores = play_episode(env, make_actor(policy), seed, keep_steps=keep_steps, keep_trace=keep_trace)
     row = {"world": str(world), "plan": core.world.name, "seed": seed, "policy": policy_name(policy),
            "decisions": core.decisions, "return": scores["return"], **{k: scores[k] for k in SCORES if k in scores}}
-    if keep_steps:
-        row["steps"] = scores["steps"]
+    for kept in ("steps", TRACE):
+        if kept in scores:
+            row[kept] = scores[kept]
     if keep_maps:
         row.update(expected_map=core.expected_map, oracle_map=core.oracle_map,
                    extent=core.geometry.extent, true_path=core.true_path)
@@ -82,8 +84,8 @@ def play_on_world(world, seed: int, policy, settings: ComparisonSettings = Compa
 
 
 def _run(job) -> dict:
-    world, seed, policy, settings, keep_steps = job
-    return play_on_world(world, seed, policy, settings, keep_steps=keep_steps)
+    world, seed, policy, settings, keep_steps, keep_trace = job
+    return play_on_world(world, seed, policy, settings, keep_steps=keep_steps, keep_trace=keep_trace)
 
 
 def compare(worlds, seeds, policies, settings: ComparisonSettings = ComparisonSettings(), *,
@@ -95,11 +97,12 @@ def compare(worlds, seeds, policies, settings: ComparisonSettings = ComparisonSe
 
 def compare_on(episodes, policies, settings: ComparisonSettings = ComparisonSettings(), *,
                workers: int | None = None, progress: bool = True, keep_steps: bool = False,
-               start_method: str | None = None) -> list[dict]:
+               keep_trace: bool = False, start_method: str | None = None) -> list[dict]:
     """Every policy on each ``(world, seed)`` of ``episodes``, in ``workers`` processes (started by
     ``start_method``: "spawn" where a policy uses torch); rows sorted by world, seed, policy (with
-    ``keep_steps``, each row's ``steps``: see :func:`play_on_world`)."""
-    jobs = ((w if w is None else str(w), int(s), p, settings, keep_steps) for w, s in episodes for p in policies)
+    ``keep_steps`` and ``keep_trace``, each row's ``steps`` and ``trace``: see :func:`play_on_world`)."""
+    jobs = ((w if w is None else str(w), int(s), p, settings, keep_steps, keep_trace)
+            for w, s in episodes for p in policies)
     rows = run_in_processes(_run, jobs, total=len(episodes) * len(policies), workers=workers, desc="episodes",
                             progress=progress, start_method=start_method)
     order = {policy_name(p): i for i, p in enumerate(policies)}

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from .loop_order import LOOP_ORDER_KEY
+from .robot_time import TRACE, trace_point
 
 #: What an episode's last ``info`` says against the ground truth (and the certainty it ended with).
 GROUND_TRUTH = ("coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate", "emmi", "pose_entropy",
@@ -43,7 +44,7 @@ class PolicyActor:
         return self.policy(env)
 
 
-def play_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
+def play_episode(env, actor, seed: int, keep_steps: bool = False, keep_trace: bool = False) -> dict:
     """One episode with ``actor``; its return, steps and ground-truth measures (see :data:`GROUND_TRUTH`).
 
     ``sim_steps_to_target`` is the simulator steps until the coverage target (NaN if it was
@@ -56,12 +57,14 @@ def play_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
     in velocity mode): how much of its time the policy spent going back to close loops. With
     ``keep_steps``, ``steps`` lists each step's ``info["reward_components"]`` with its ``duration`` in
     simulator steps (what any reward variant, time cost and discount would have paid), the kind of
-    target it chose and where that target was (``target_xy``, in the map's frame).
+    target it chose and where that target was (``target_xy``, in the map's frame). With ``keep_trace``,
+    ``trace`` lists the ground-truth scores at the reset and after every step, with the robot time
+    (:func:`emmi_gym.tools.experiments.robot_time.trace_point`): what reads the map at equal robot time.
     """
-    observation, _ = env.reset(seed=seed)
+    observation, info = env.reset(seed=seed)
     actor.reset(seed)
     total, steps, revisits, terminated, truncated = 0.0, 0, 0, False, False
-    kept = []
+    kept, trace = [], [trace_point(info)] if keep_trace else None
     while not (terminated or truncated):
         action = actor(env, observation)
         target = _target_of(env, action) if keep_steps else None
@@ -72,6 +75,8 @@ def play_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
         if keep_steps:
             kept.append({**info["reward_components"], "duration": info["sim_steps_this_step"],
                          "target_kind": info.get("target_kind"), "target_xy": target})
+        if keep_trace:
+            trace.append(trace_point(info))
     row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in GROUND_TRUTH},
            "reached_target": float(terminated),
            "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan,
@@ -80,6 +85,8 @@ def play_episode(env, actor, seed: int, keep_steps: bool = False) -> dict:
         row[LOOP_ORDER_KEY] = info[LOOP_ORDER_KEY]
     if keep_steps:
         row["steps"] = kept
+    if keep_trace:
+        row[TRACE] = trace
     return row
 
 
@@ -93,8 +100,8 @@ def _target_of(env, action) -> tuple[float, float] | None:
     return float(target.x), float(target.y)
 
 
-def play_episodes(env, actor, seeds) -> list[dict]:
-    return [play_episode(env, actor, int(seed)) for seed in seeds]
+def play_episodes(env, actor, seeds, keep_trace: bool = False) -> list[dict]:
+    return [play_episode(env, actor, int(seed), keep_trace=keep_trace) for seed in seeds]
 
 
 def nanmean(values) -> float:

@@ -32,6 +32,23 @@ class TrainedAgent:
     def make_actor(self) -> ModelActor:
         return ModelActor(_model_in_this_process(self.path))
 
+    def check_plays_in(self, config, what: str) -> None:
+        """A ``ValueError`` starting with ``what`` (the option) unless the model was trained on ``config``'s env
+        id and its spaces are those of ``config``'s evaluation env, where it is to play."""
+        model, own = load_model(self.path)
+        if own.env_id != config.env_id:
+            raise ValueError(f"{what}: {self.name} ({self.path}) is an agent of {own.env_id}, but {config.source} "
+                             f"evaluates on {config.env_id}")
+        env = make_agent_env(config.env_id, config.eval_env_kwargs)
+        try:
+            for name, saved, expected in (("observation", model.observation_space, env.observation_space),
+                                          ("action", model.action_space, env.action_space)):
+                if saved != expected:
+                    raise ValueError(f"{what}: {self.name}'s {name} space is {saved}, but the evaluation env of "
+                                     f"{config.source} has {expected}")
+        finally:
+            env.close()
+
 
 @lru_cache(maxsize=4)
 def _model_in_this_process(path: str):
@@ -43,10 +60,11 @@ def _model_in_this_process(path: str):
 
 
 def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, video_dir=None,
-                   config=None) -> list[dict]:
+                   config=None, keep_trace: bool = False) -> list[dict]:
     """Run ``episodes`` episodes of the model in the held-out evaluation's environment of its run's
     configuration (the training env with ``eval.env_kwargs``; ``config``: that configuration, if the
-    caller has loaded it already)."""
+    caller has loaded it already); with ``keep_trace``, each row's ``trace``
+    (:func:`~emmi_gym.tools.experiments.episodes.play_episode`)."""
     model_path = Path(model_path)
     model, config = load_model(model_path, config)
     env = make_agent_env(config.env_id, config.eval_env_kwargs, render_mode="rgb_array" if video_dir else None)
@@ -56,7 +74,7 @@ def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, 
         env = RecordVideo(env, str(video_dir), episode_trigger=lambda _: True, name_prefix=model_path.stem,
                           disable_logger=True)
     try:
-        return play_episodes(env, ModelActor(model), range(seed, seed + episodes))
+        return play_episodes(env, ModelActor(model), range(seed, seed + episodes), keep_trace=keep_trace)
     finally:
         env.close()
 
@@ -85,30 +103,32 @@ def comparison_settings(config):
 
 def compare_model(model_path, name: str = "agent", world=OWN_WORLD, episodes: int = 10, seed: int = EVALUATION_SEED,
                   baselines=(), *, workers: int | None = None, progress: bool = True) -> list[dict]:
-    """The model and the scripted ``baselines`` on the same ``episodes`` (world, seed) pairs, paired, in its
-    run's evaluation env (:func:`emmi_gym.tools.experiments.comparison.compare_on`): ``world`` a world, map
-    set, folder or glob (default: the evaluation env's own world), its maps or seeds taken as
-    :func:`~emmi_gym.tools.experiments.comparison.episodes_on` says. Rows carry ``name`` for the model."""
+    """The model and the ``baselines`` (scripted policies' names, :class:`TrainedAgent` s) on the same
+    ``episodes`` (world, seed) pairs, paired, in its run's evaluation env
+    (:func:`emmi_gym.tools.experiments.comparison.compare_on`): ``world`` a world, map set, folder or glob
+    (default: the evaluation env's own world), its maps or seeds taken as
+    :func:`~emmi_gym.tools.experiments.comparison.episodes_on` says. Rows carry ``name`` for the model, and
+    each episode's ``trace`` (for the comparison at equal robot time)."""
     from ..experiments.comparison import compare_on, episodes_on
 
     settings, own_world = comparison_settings(RunFolder.config_of_model(model_path))
     pairs = episodes_on(own_world if world is OWN_WORLD else world, episodes, seed)
     return compare_on(pairs, [TrainedAgent(str(model_path), name), *baselines], settings, workers=workers,
-                      progress=progress, start_method="spawn")  # torch and fork do not mix
+                      progress=progress, keep_trace=True, start_method="spawn")  # torch and fork do not mix
 
 
 def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> list[Path]:
     """``front.png`` (map quality against robot time, a point per policy) and, beside a baseline,
     ``maps.png``: the episode where the model's accuracy against the oracle map differs most from the
     first baseline's (among those where it went back, if any), both maps with where it went back."""
-    from ..experiments.comparison import play_on_world, plot_front, plot_pair
+    from ..experiments.comparison import play_on_world, plot_front, plot_pair, policy_name
 
     out = Path(out)
     plot_front(rows, out / "front.png")
     written = [out / "front.png"]
     if baselines:
         mine = {(r["world"], r["seed"]): r for r in rows if r["policy"] == name}
-        theirs = {(r["world"], r["seed"]): r for r in rows if r["policy"] == baselines[0]}
+        theirs = {(r["world"], r["seed"]): r for r in rows if r["policy"] == policy_name(baselines[0])}
         gaps = {key: mine[key]["oracle_accuracy"] - theirs[key]["oracle_accuracy"] for key in mine.keys() & theirs}
         went_back = [key for key in gaps if mine[key].get("revisit_share", 0) > 0] or list(gaps)
         world, seed = max(sorted(went_back), key=lambda key: abs(gaps[key]))

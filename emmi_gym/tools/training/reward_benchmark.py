@@ -1,5 +1,6 @@
 """The reward benchmark: for each reward variant, train an agent per seed, then evaluate every agent
-and the scripted baselines on the *same* held-out episodes under the *same* ground-truth metrics.
+and the baselines (scripted policies, shipped agents) on the *same* held-out episodes under the *same*
+ground-truth metrics, final and at equal robot time (:mod:`emmi_gym.tools.experiments.robot_time`).
 
 Runs are independent jobs: by default they go to local worker processes; with a Ray address
 (or "local" for a fresh local Ray instance) they go to a Ray cluster instead. Ray is an
@@ -25,11 +26,13 @@ from ...concurrency.interrupts import Interrupted
 from ...concurrency.parallel import run_in_processes
 from ...concurrency.ray_cluster import connect_ray
 from ...formats.atomic_files import write_atomically, write_text_atomically
+from ..experiments.comparison import make_actor, policy_name
 from ..experiments.directions import better_side, format_number
-from ..experiments.episodes import PolicyActor, nanmean, play_episodes
+from ..experiments.episodes import nanmean, play_episodes
 from ..experiments.intervals import difference_interval, measure_interval
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
+from ..experiments.robot_time import TRACE, read_together, trace_rows, without_traces
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
 from .run_folders import RunError, RunFolder, RunStart
@@ -53,8 +56,10 @@ TABLE_COLUMNS = {
 @dataclass(frozen=True)
 class Job:
     """One benchmark run: train ``config`` with reward ``variant`` (kind "agent"; from the weights of
-    the model ``init_from``, if given, with ``allow_no_training`` as ``train``'s), or run the scripted
-    policy ``variant`` (kind "baseline"); then evaluate on the held-out episodes."""
+    the model ``init_from``, if given, with ``allow_no_training`` as ``train``'s), or play the baseline
+    ``policy`` named ``variant`` (kind "baseline": a scripted policy's name, or a
+    :class:`~emmi_gym.tools.training.evaluate.TrainedAgent` such as a shipped agent); then evaluate on the
+    held-out episodes, keeping each episode's trace for the comparison at equal robot time."""
 
     kind: str
     variant: str
@@ -65,6 +70,7 @@ class Job:
     episode_seed: int
     init_from: Path | None = None
     allow_no_training: bool = False
+    policy: object = None
 
 
 def run_job(job: Job) -> dict:
@@ -84,19 +90,19 @@ def run_job(job: Job) -> dict:
             if result.interrupted:  # its checkpoint is kept for the next run of the benchmark, never evaluated
                 raise KeyboardInterrupt
             model_path = result.model_path
-        rows = evaluate_model(model_path, job.episodes, job.episode_seed)
+        rows = evaluate_model(model_path, job.episodes, job.episode_seed, keep_trace=True)
         evaluations = folder.ground_truth_path
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
             with open(evaluations) as f:
                 curve = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
     else:
-        from ..policies import make_policy
-
         trained = False
         env = make_agent_env(job.config.env_id, job.config.eval_env_kwargs)
-        rows = play_episodes(env, PolicyActor(make_policy(job.variant)), range(job.episode_seed,
-                                                                             job.episode_seed + job.episodes))
-        env.close()
+        try:
+            rows = play_episodes(env, make_actor(job.policy), range(job.episode_seed, job.episode_seed + job.episodes),
+                                 keep_trace=True)
+        finally:
+            env.close()
     for row in rows:
         row.update(kind=job.kind, variant=job.variant, seed=job.seed)
     return {"job": job, "rows": rows, "curve": curve, "trained": trained, "wall_seconds": time.perf_counter() - started}
@@ -130,22 +136,29 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
               init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED) -> list[Job]:
     """The agents (one per reward and seed, trained with ``dummy`` vectorisation: the jobs run in
     parallel already; each from the weights of the model ``init_from``, if given, as ``train
-    --init-from``) and one job per scripted baseline; every job is evaluated on the ``episodes``
-    held-out episodes seeded from ``eval_seed``."""
+    --init-from``) and one job per baseline (a scripted policy's name, or a trained agent:
+    :class:`~emmi_gym.tools.training.evaluate.TrainedAgent`, checked to act in the benchmark's
+    evaluation env); every job is evaluated on the ``episodes`` held-out episodes seeded from
+    ``eval_seed``."""
     from ..policies import POLICY_NAMES
 
     out = Path(out_dir)
-    for option, names in (("--rewards", rewards), ("--seeds", seeds), ("--baselines", baselines)):
-        twice = sorted({str(name) for name in names if list(names).count(name) > 1})
+    names = [policy_name(baseline) for baseline in baselines]
+    for option, given in (("--rewards", rewards), ("--seeds", seeds), ("--baselines", names)):
+        twice = sorted({str(name) for name in given if list(given).count(name) > 1})
         if twice:
             raise ValueError(f"{option}: {', '.join(twice)} given more than once (each would train or play into "
                              "the same folder at once)")
-    unknown = sorted(set(baselines) - set(POLICY_NAMES))
+    scripted = [baseline for baseline in baselines if isinstance(baseline, str)]
+    unknown = sorted(set(scripted) - set(POLICY_NAMES))
     if unknown:
         raise ValueError(f"--baselines: unknown {unknown}; choose from {list(POLICY_NAMES)}")
-    if baselines and _action_mode(config) != "waypoint":
-        raise ValueError(f"the scripted baselines {list(baselines)} choose waypoint targets, but {config.env_id} "
+    if scripted and _action_mode(config) != "waypoint":
+        raise ValueError(f"the scripted baselines {scripted} choose waypoint targets, but {config.env_id} "
                          f"acts in {_action_mode(config)} mode: pass --baselines with no names")
+    for baseline in baselines:
+        if not isinstance(baseline, str):
+            baseline.check_plays_in(config, "--baselines")
     jobs = []
     for reward in rewards:
         for seed in seeds:
@@ -154,8 +167,8 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
                             policy_lag=0)
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
                             eval_seed, init_from, allow_no_training))
-    for name in baselines:
-        jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, eval_seed))
+    for name, baseline in zip(names, baselines, strict=True):
+        jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, eval_seed, policy=baseline))
     return jobs
 
 
@@ -237,7 +250,7 @@ def _agent_means(rows: list[dict], column: str, value=lambda row, column: row.ge
 def summary(rows: list[dict]) -> dict[str, dict[str, tuple]]:
     """Per variant and column of the episode ``rows`` (as ``benchmark_episodes.csv`` holds them): mean [95%
     interval]. For trained variants each agent's episode mean is one sample (the interval is over training
-    seeds); for a baseline, each episode is."""
+    seeds); for a baseline (scripted or a shipped agent), each episode is."""
     table = {}
     for variant in dict.fromkeys(row["variant"] for row in rows):
         own = [row for row in rows if row["variant"] == variant]
@@ -250,24 +263,35 @@ def summary(rows: list[dict]) -> dict[str, dict[str, tuple]]:
     return table
 
 
-#: Columns of the paired comparison of each trained variant with each scripted baseline.
+#: Columns of the paired comparison of each trained variant with each baseline: of the final maps, and at
+#: equal robot time (each pair read at the robot time the shorter episode took).
 PAIRED_COLUMNS = ("ate", "oracle_accuracy", "sim_steps", LOOP_ORDER_KEY)
+EQUAL_TIME_COLUMNS = ("ate", "oracle_accuracy", "wall_consistency", "coverage", "sim_steps")
 
 
-def paired_with(rows: list[dict], baseline: str) -> dict[str, dict[str, tuple]]:
-    """Each trained variant minus the scripted ``baseline`` on the same held-out episodes: each agent's mean
-    of its paired differences (episode by episode) is one sample; mean [95% t-interval] over the agents."""
+def paired_with(rows: list[dict], baseline: str, *, equal_robot_time: bool = False) -> dict[str, dict[str, tuple]]:
+    """Each trained variant minus ``baseline`` on the same held-out episodes: each agent's mean of its paired
+    differences (episode by episode) is one sample; mean [95% t-interval] over the agents. With
+    ``equal_robot_time`` (rows with traces), each pair of episodes is read at the robot time the shorter took
+    (:func:`~emmi_gym.tools.experiments.robot_time.read_together`); ``sim_steps`` is then that time, the
+    agent's own, not a difference."""
     theirs = {row["episode_seed"]: row for row in rows if row["kind"] == "baseline" and row["variant"] == baseline}
 
     def difference(row, column):
         other = theirs.get(row["episode_seed"])
-        return math.nan if other is None else row.get(column, math.nan) - other.get(column, math.nan)
+        if other is None:
+            return math.nan
+        if not equal_robot_time:
+            return row.get(column, math.nan) - other.get(column, math.nan)
+        mine, its = read_together(row, other)
+        return mine[column] if column == "sim_steps" else mine[column] - its[column]
 
     table = {}
     for variant in dict.fromkeys(row["variant"] for row in rows if row["kind"] == "agent"):
-        own = [row for row in rows if row["variant"] == variant]
-        table[variant] = {column: difference_interval(_agent_means(own, column, difference), column)
-                          for column in PAIRED_COLUMNS}
+        own = [row for row in rows if row["variant"] == variant and (TRACE in row or not equal_robot_time)]
+        table[variant] = {column: (measure_interval if equal_robot_time and column == "sim_steps" else
+                                   difference_interval)(_agent_means(own, column, difference), column)
+                          for column in (EQUAL_TIME_COLUMNS if equal_robot_time else PAIRED_COLUMNS)}
     return table
 
 
@@ -301,21 +325,36 @@ def markdown(rows: list[dict], header: str) -> str:
     lines = [header, "", "| variant | " + " | ".join(_heading(c) for c in columns) + " |",
              "| --- |" + " --- |" * len(columns)]
     for variant, entry in table.items():
-        name = f"{variant} ({entry['agents']} agents)" if entry["agents"] else f"{variant} (scripted)"
+        name = f"{variant} ({entry['agents']} agents)" if entry["agents"] else f"{variant} (baseline)"
         lines.append(f"| {name} | " + " | ".join(_cell(entry[column], column) for column in columns) + " |")
+    traced = any(TRACE in row for row in rows)
     for baseline in dict.fromkeys(row["variant"] for row in rows if row["kind"] == "baseline"):
-        paired = paired_with(rows, baseline)
-        if not paired:
-            continue
-        shown = [c for c in PAIRED_COLUMNS if any(entry[c][3] > 0 for entry in paired.values())]
-        lines += ["", f"Paired with {baseline} on the same episodes (agent minus {baseline}; mean [95% "
-                      f"t-interval] over the agents of each agent's mean difference):", "",
-                  "| variant | " + " | ".join(_heading(c) for c in shown) + " |",
-                  "| --- |" + " --- |" * len(shown)]
-        for variant, entry in paired.items():
-            lines.append(f"| {variant} - {baseline} | " + " | ".join(_cell(entry[c], c, signed=True) for c in shown)
-                         + " |")
+        lines += _paired_table(paired_with(rows, baseline), baseline,
+                               f"Paired with {baseline} on the same episodes (agent minus {baseline}; mean [95% "
+                               "t-interval] over the agents of each agent's mean difference):")
+        if traced:
+            lines += _paired_table(
+                paired_with(rows, baseline, equal_robot_time=True), baseline,
+                f"At equal robot time with {baseline}: each pair of episodes read at the robot time the shorter "
+                f"of the two took (the longer one's scores linear between its decisions), agent minus {baseline} "
+                f"as above; robot time: that time (the mean over agents of their mean), not a difference:",
+                time_column="sim_steps")
     return "\n".join(lines) + "\n"
+
+
+def _paired_table(paired: dict, baseline: str, title: str, time_column: str | None = None) -> list[str]:
+    """The Markdown lines of a :func:`paired_with` table (none if no variant has a value); ``time_column`` is
+    shown unsigned, as a time rather than a difference."""
+    if not paired:
+        return []
+    columns = next(iter(paired.values())).keys()
+    shown = [c for c in columns if any(entry[c][3] > 0 for entry in paired.values())]
+    lines = ["", title, "", "| variant | " + " | ".join(_heading(c) for c in shown) + " |",
+             "| --- |" + " --- |" * len(shown)]
+    for variant, entry in paired.items():
+        lines.append(f"| {variant} - {baseline} | "
+                     + " | ".join(_cell(entry[c], c, signed=c != time_column) for c in shown) + " |")
+    return lines
 
 
 def plot(results: list[dict], out: Path) -> dict[str, Path]:
@@ -372,12 +411,15 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
 
 
 def write_benchmark(results: list[dict], out_dir, header: str) -> dict[str, Path]:
-    """``benchmark_episodes.csv`` (every evaluation episode), ``benchmark_summary.md`` and the plots."""
+    """``benchmark_episodes.csv`` (every evaluation episode), ``benchmark_traces.csv`` (their ground-truth scores
+    after every decision, :mod:`~emmi_gym.tools.experiments.robot_time`), ``benchmark_summary.md`` and the plots."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    files = {"episodes": out / "benchmark_episodes.csv", "summary": out / "benchmark_summary.md"}
+    files = {"episodes": out / "benchmark_episodes.csv", "traces": out / "benchmark_traces.csv",
+             "summary": out / "benchmark_summary.md"}
     rows = episode_rows(results)
-    write_csv(files["episodes"], rows)
+    write_csv(files["episodes"], without_traces(rows))
+    write_csv(files["traces"], trace_rows(rows, keys=("kind", "variant", "seed", "episode_seed")))
     write_text_atomically(files["summary"], markdown(rows, header))
     files.update(plot(results, out))
     return files

@@ -40,10 +40,16 @@ def test_evaluate_plays_the_model_and_the_baselines_on_the_same_episodes(tiny_ag
                  "--workers", "1", "--quiet", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "agent - frontier: 2 pairs" in printed and "agent - random: 2 pairs" in printed
+    assert "agent - frontier at equal robot time" in printed and "agent - random at equal robot time" in printed
     assert (out / "front.png").stat().st_size > 10_000 and (out / "maps.png").stat().st_size > 10_000
     rows = read_rows(out / "episodes.csv")
     assert sorted((r["policy"], r["seed"]) for r in rows) == sorted(
         (p, s) for p in ("agent", "frontier", "random") for s in ("7", "8"))
+    traces = read_rows(out / "traces.csv")
+    for row in rows:  # each episode's trace starts at the reset and ends at its final scores
+        own = [t for t in traces if (t["policy"], t["seed"]) == (row["policy"], row["seed"])]
+        assert own[0]["sim_steps"] == "0.0" and len(own) == int(row["decisions"]) + 1
+        assert all(float(own[-1][c]) == float(row[c]) for c in ("sim_steps", "ate", "oracle_accuracy", "coverage"))
     # the baseline's episodes are those the comparison plays on its own for the same world and seed
     config = RunFolder.config_of_model(tiny_agent)
     alone = play_on_world(None, 8, "frontier", ComparisonSettings(config.env_id, config.eval_env_kwargs))
@@ -65,7 +71,9 @@ def test_evaluate_refuses_unknown_baselines_and_agents(tiny_agent, capsys):
     for argv, expected in [([str(tiny_agent), "--baselines", "nearest"], "--baselines: unknown ['nearest']"),
                            (["--pretrained", "nope"], "no pretrained agent 'nope'"),
                            ([], "give a model .zip or --pretrained NAME"),
-                           ([str(tiny_agent), "--pretrained", "loop_corridor_emmi"], "one of them")]:
+                           ([str(tiny_agent), "--pretrained", "loop_corridor_emmi"], "one of them"),
+                           ([str(tiny_agent), "--baselines", "frontier", "loop_order_emmi"],
+                            "--baselines: loop_order_emmi")]:
         with pytest.raises(SystemExit) as stop:
             main(["evaluate", *argv])
         assert stop.value.code == 2 and expected in capsys.readouterr().err
@@ -133,3 +141,14 @@ def test_score_checkpoints_plays_every_checkpoint_on_the_same_episodes(tmp_path,
     (tmp_path / "empty").mkdir()
     with pytest.raises(FileNotFoundError, match="no checkpoint in .*empty/checkpoints"):
         score_checkpoints(tmp_path / "empty", progress=False)
+
+
+def test_a_shipped_agent_named_as_a_baseline_plays_its_model():
+    from emmi_gym.tools.commands.arguments import baseline_policies
+    from emmi_gym.tools.training.evaluate import TrainedAgent
+
+    frontier, clone = baseline_policies(["frontier", "explore_plans_emmi"])
+    assert frontier == "frontier" and clone == TrainedAgent(str(pretrained.model_path("explore_plans_emmi")),
+                                                            "explore_plans_emmi")
+    with pytest.raises(ValueError, match=r"--baselines: unknown \['nearest'\]; choose scripted .* or shipped agents"):
+        baseline_policies(["nearest"])

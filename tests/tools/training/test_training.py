@@ -453,7 +453,7 @@ def _tiny_benchmark(tmp_path, **kwargs):
                             **kwargs)
     files = write_benchmark(results, tmp_path, "tiny")
     summary = files["summary"].read_text()
-    assert "| emmi (1 agents) |" in summary and "| frontier (scripted) |" in summary
+    assert "| emmi (1 agents) |" in summary and "| frontier (baseline) |" in summary
     # Explore-v1 has no loop order, and 4 decisions reach no coverage target: columns without a value are left out
     unmeasured = (LOOP_ORDER_KEY, "sim_steps_to_target")
     assert all((label in summary) != (column in unmeasured) for column, label in TABLE_COLUMNS.items())
@@ -486,6 +486,30 @@ def test_benchmark_summary_pairs_each_agent_with_the_baselines_on_the_same_episo
     assert "| emmi - explore_first | -0.200 [" in markdown(rows, "t")
 
 
+def test_benchmark_pairs_the_agents_with_the_baselines_at_equal_robot_time():
+    """Each pair of episodes read at the robot time the shorter took: the agent's episodes end at 500 steps, the
+    baseline's at 1000, so the baseline is read halfway through its last decision."""
+    from emmi_gym.tools.experiments.robot_time import TRACE
+    from emmi_gym.tools.training.reward_benchmark import markdown, paired_with
+
+    def row(kind, variant, seed, episode, end, accuracy, ate):
+        start = {"sim_steps": 0.0, "oracle_accuracy": 1.0, "ate": 0.0, "wall_consistency": 1.0, "coverage": 0.2}
+        final = {"sim_steps": end, "oracle_accuracy": accuracy, "ate": ate, "wall_consistency": 0.8, "coverage": 0.9}
+        return {"kind": kind, "variant": variant, "seed": seed, "episode_seed": episode, **final,
+                TRACE: [start, final]}
+
+    rows = [row("baseline", "closer", 0, e, 1000.0, 0.9, 0.5) for e in (10, 11)]
+    rows += [row("agent", "emmi", seed, e, 500.0, 0.8, 0.3) for seed in (0, 1) for e in (10, 11)]
+    final = paired_with(rows, "closer")["emmi"]
+    assert final["oracle_accuracy"][0] == pytest.approx(-0.1) and final["sim_steps"][0] == pytest.approx(-500)
+    equal = paired_with(rows, "closer", equal_robot_time=True)["emmi"]
+    assert equal["oracle_accuracy"][0] == pytest.approx(0.8 - 0.95) and equal["ate"][0] == pytest.approx(0.3 - 0.25)
+    assert equal["coverage"][0] == pytest.approx(0.9 - 0.55) and equal["sim_steps"][0] == 500.0
+    summary = markdown(rows, "t")
+    assert "At equal robot time with closer" in summary
+    assert "| emmi - closer | +0.050 [+0.050, +0.050] (n=2) | -0.150 [" in summary
+
+
 def test_benchmark_refuses_waypoint_baselines_in_velocity_mode(tmp_path):
     config = parse_agent_config(config_dict("PPO"))
     with pytest.raises(ValueError, match="choose waypoint targets"):
@@ -493,8 +517,30 @@ def test_benchmark_refuses_waypoint_baselines_in_velocity_mode(tmp_path):
 
 
 @pytest.mark.slow
-def test_benchmark_in_local_worker_processes(tmp_path):
-    _tiny_benchmark(tmp_path, workers=2)
+def test_benchmark_in_local_worker_processes_with_a_trained_agent_as_a_baseline(tmp_path):
+    from emmi_gym import pretrained
+    from emmi_gym.tools.training.evaluate import TrainedAgent
+
+    rows = _tiny_benchmark(tmp_path, workers=2)
+    config = parse_agent_config(config_dict("PPO", {"max_decisions": 4}, {"n_steps": 16, "batch_size": 16,
+                                                                          "n_epochs": 1},
+                                            env_id="emmi_gym/Explore-v1"))
+    trained = TrainedAgent(str(tmp_path / "runs" / "coverage_seed0" / "model.zip"), "coverage_agent")
+    results = run_benchmark(config, ["emmi"], range(1), 16, 1, [trained], tmp_path, workers=2, progress=False)
+    files = write_benchmark(results, tmp_path, "with a trained baseline")
+    # the trained agent, played as a baseline, plays the episode its own evaluation played
+    with open(files["episodes"]) as f:
+        as_baseline = next(r for r in csv.DictReader(f) if r["variant"] == "coverage_agent")
+    as_agent = next(r for r in rows if r["variant"] == "coverage")
+    assert all(as_baseline[c] == as_agent[c] for c in ("ate", "oracle_accuracy", "sim_steps", "coverage"))
+    summary = files["summary"].read_text()
+    assert "| coverage_agent (baseline) |" in summary and "At equal robot time with coverage_agent" in summary
+    with open(files["traces"]) as f:
+        traces = [r for r in csv.DictReader(f) if r["variant"] == "coverage_agent"]
+    assert traces[0]["sim_steps"] == "0.0" and traces[-1]["sim_steps"] == as_baseline["sim_steps"]
+    with pytest.raises(ValueError, match="--baselines: loop_agent .* is an agent of emmi_gym/LoopOrder-v1"):
+        run_benchmark(config, ["emmi"], range(1), 16, 1,
+                      [TrainedAgent(str(pretrained.model_path("loop_order_emmi")), "loop_agent")], tmp_path)
 
 
 @pytest.mark.slow
