@@ -86,6 +86,8 @@ def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str,
 
     if args.video:
         raise ValueError("--video records the model alone: leave out --world and --baselines")
+    if name in args.baselines:
+        raise ValueError(f"--baselines: {name} is the model evaluated; its rows could not be told apart")
     baselines = arguments.baseline_policies(args.baselines)
     for baseline in baselines:
         if not isinstance(baseline, str):

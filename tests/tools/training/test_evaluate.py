@@ -73,7 +73,9 @@ def test_evaluate_refuses_unknown_baselines_and_agents(tiny_agent, capsys):
                            ([], "give a model .zip or --pretrained NAME"),
                            ([str(tiny_agent), "--pretrained", "loop_corridor_emmi"], "one of them"),
                            ([str(tiny_agent), "--baselines", "frontier", "loop_order_emmi"],
-                            "--baselines: loop_order_emmi")]:
+                            "--baselines: loop_order_emmi"),
+                           (["--pretrained", "loop_order_emmi", "--baselines", "loop_order_emmi"],
+                            "--baselines: loop_order_emmi is the model evaluated")]:
         with pytest.raises(SystemExit) as stop:
             main(["evaluate", *argv])
         assert stop.value.code == 2 and expected in capsys.readouterr().err
