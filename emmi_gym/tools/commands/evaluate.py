@@ -17,6 +17,8 @@ def add_parser(subparsers) -> None:
     ev.add_argument("model", nargs="?", default=None,
                     help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
     ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
+    ev.add_argument("--name", default=None, help="the name the model's rows carry (default: 'agent', or the shipped "
+                                                 "agent's name)")
     ev.add_argument("--episodes", type=arguments.EPISODES, default=10,
                     help="episodes to play (default 10; on a map set, its first maps, one episode each)")
     ev.add_argument("--seed", type=arguments.SEED, default=HELD_OUT_SEED,
@@ -70,10 +72,10 @@ def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
     if args.pretrained is not None:
         from .. import pretrained
 
-        return pretrained.model_path(args.pretrained), args.pretrained
+        return pretrained.model_path(args.pretrained), args.name or args.pretrained
     if not Path(args.model).is_file():
         raise FileNotFoundError(f"no model at {args.model}")
-    return Path(args.model), "agent"
+    return Path(args.model), args.name or "agent"
 
 
 def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:

@@ -64,6 +64,17 @@ def trace_rows(rows: list[dict], keys=("world", "seed", "policy")) -> list[dict]
     return [{**{k: row[k] for k in keys}, **point} for row in rows if TRACE in row for point in row[TRACE]]
 
 
+def with_traces(rows: list[dict], points: list[dict], keys=("world", "seed", "policy")) -> list[dict]:
+    """Episode ``rows`` given back their traces from ``points`` (rows of a trace file, :func:`trace_rows`),
+    matched on ``keys``; a row that no point matches stays without a trace."""
+    traces: dict[tuple, list[dict]] = {}
+    for point in points:
+        traces.setdefault(tuple(point[k] for k in keys), []).append(
+            {TIME: float(point[TIME]), **{column: float(point[column]) for column in TRACED}})
+    return [{**row, TRACE: traces[key]} if (key := tuple(row[k] for k in keys)) in traces else dict(row)
+            for row in rows]
+
+
 def without_traces(rows: list[dict]) -> list[dict]:
     """Episode ``rows`` without their traces, as an episodes file holds them."""
     return [{k: v for k, v in row.items() if k != TRACE} for row in rows]

@@ -11,6 +11,7 @@ from emmi_gym.tools.experiments.robot_time import (
     read_together,
     score_at,
     trace_rows,
+    with_traces,
     without_traces,
 )
 
@@ -59,3 +60,6 @@ def test_an_episodes_trace_starts_at_the_reset_and_ends_at_its_final_scores():
     assert len(long_form) == sum(len(row[TRACE]) for row in rows)
     assert set(long_form[0]) == {"world", "seed", "policy", "sim_steps", *TRACED}
     assert all(TRACE not in row for row in without_traces(rows)) and TRACE in rows[0]
+    # a trace file's points give each episode its trace back, matched on world, seed and policy
+    assert with_traces(without_traces(rows), long_form) == rows
+    assert TRACE not in with_traces(without_traces([{**rows[0], "seed": 9}]), long_form)[0]
