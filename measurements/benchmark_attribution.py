@@ -1,17 +1,20 @@
-"""How much of a reward benchmark's differences in the map its policies' routes explain (the order, the
-revisits, the robot time), and what each policy gains beyond them
-(:mod:`emmi_gym.tools.experiments.attribution`).
+"""How much of the differences in the map between policies their routes explain (the order, the revisits, the
+robot time), and what each policy gains beyond them (:mod:`emmi_gym.tools.experiments.attribution`).
 
-    python measurements/benchmark_attribution.py BENCHMARK_DIR [--bootstrap 2000]
+    python measurements/benchmark_attribution.py FOLDER [FOLDER ...] [--bootstrap 2000]
 
-Every episode of ``BENCHMARK_DIR/benchmark_episodes.csv`` (the agents of every reward and the scripted
-policies, all on the same held-out worlds) is one row; the tables go to stdout as Markdown.
+A FOLDER is the ``--out`` of ``emmi-gym benchmark`` (its ``benchmark_episodes.csv``: the agents of every reward
+and the baselines, all on the same held-out worlds) or of ``emmi-gym evaluate`` (its ``episodes.csv``; several
+such folders on the same worlds and seeds are pooled, each agent under its own ``--name``). Every episode is one
+row; the tables go to stdout as Markdown.
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+
+from evaluations_paired import pooled_episodes
 
 from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.attribution import markdown
@@ -20,14 +23,20 @@ from emmi_gym.tools.experiments.report import read_csv
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("benchmark", type=Path, help="the --out folder of 'emmi-gym benchmark'")
+    parser.add_argument("folders", nargs="+", type=Path,
+                        help="the --out folder of 'emmi-gym benchmark', or those of 'emmi-gym evaluate'")
     parser.add_argument("--bootstrap", type=arguments.integer(100, 100_000), default=2000,
                         help="resamplings of the worlds for the intervals")
     args = parser.parse_args()
-    episodes = args.benchmark / "benchmark_episodes.csv"
-    if not episodes.is_file():
-        raise SystemExit(f"{episodes}: not found (a finished benchmark's --out is expected)")
-    print(markdown(read_csv(episodes), args.bootstrap))
+    benchmark = args.folders[0] / "benchmark_episodes.csv"
+    if len(args.folders) == 1 and benchmark.is_file():
+        rows = read_csv(benchmark)
+    else:
+        rows = pooled_episodes(args.folders)
+    try:
+        print(markdown(rows, args.bootstrap))
+    except ValueError as error:
+        raise SystemExit(f"{', '.join(map(str, args.folders))}: {error}") from None
 
 
 if __name__ == "__main__":

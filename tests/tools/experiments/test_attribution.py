@@ -23,7 +23,7 @@ def episodes(offsets: dict[str, float], worlds: int = 12, noise: float = 0.0, se
 
 
 def test_the_fit_recovers_the_effects_within_worlds_and_leaves_no_residual():
-    estimate, low, high, names, worlds = attribution(episodes({"emmi": 0.0, "a": 0.0, "b": 0.0}), "ate", 200)
+    estimate, low, high, names, worlds, _ = attribution(episodes({"emmi": 0.0, "a": 0.0, "b": 0.0}), "ate", 200)
     assert worlds == 12 and names == ["emmi agents", "a", "b"]
     np.testing.assert_allclose(estimate[:len(PREDICTORS)], [-0.05, -0.2, 0.01], atol=1e-9)
     assert estimate[len(PREDICTORS)] == pytest.approx(1.0)
@@ -31,7 +31,7 @@ def test_the_fit_recovers_the_effects_within_worlds_and_leaves_no_residual():
 
 
 def test_a_policy_that_maps_better_than_its_route_explains_has_a_negative_residual():
-    estimate, low, high, names, _ = attribution(episodes({"emmi": -0.03, "a": 0.0, "b": 0.0}, noise=0.005), "ate",
+    estimate, low, high, names, _, _ = attribution(episodes({"emmi": -0.03, "a": 0.0, "b": 0.0}, noise=0.005), "ate",
                                                 500)
     k = len(PREDICTORS) + 1
     residual = dict(zip(names, zip(estimate[k:], high[k:], strict=True), strict=True))
@@ -49,8 +49,22 @@ def test_the_bootstrap_is_reproducible_and_the_tables_name_every_policy():
 
 def test_rows_without_the_routes_are_refused_with_what_is_expected():
     rows = [{"episode_seed": 1, "kind": "agent", "variant": "emmi", "ate": 0.3}]
-    with pytest.raises(ValueError, match="revisit_share.*benchmark_episodes.csv"):
+    with pytest.raises(ValueError, match="revisit_share and sim_steps.*benchmark_episodes.csv"):
         attribution(rows, "ate", 100)
-    with pytest.raises(ValueError, match="closed_loop_first"):
-        unordered = [dict(row, closed_loop_first=np.nan, revisit_share=0.1, sim_steps=900.0) for row in rows]
-        attribution(unordered, "ate", 100)
+    with pytest.raises(ValueError, match="revisit_share and sim_steps"):
+        attribution([dict(row, revisit_share=0.1) for row in rows], "ate", 100)
+
+
+def test_without_a_loop_order_the_routes_are_the_revisits_and_the_time():
+    """Floor plans have no loop to close first: the fit keeps the revisits and the time, from an evaluation's rows
+    (a world is a world and seed, the policy its own)."""
+    rows = [{"world": f"plan{row['episode_seed']}", "seed": 7, "policy": row["variant"], "ate": row["ate"] + 0.05 *
+             row["closed_loop_first"], "oracle_accuracy": row["oracle_accuracy"], "closed_loop_first": np.nan,
+             "revisit_share": row["revisit_share"], "sim_steps": row["sim_steps"]}
+            for row in episodes({"agent": 0.0, "frontier": 0.0})]
+    estimate, low, high, names, worlds, predictors = attribution(rows, "ate", 200)
+    assert predictors == ["revisit_share", "sim_steps"] and worlds == 12 and names == ["agent", "frontier"]
+    np.testing.assert_allclose(estimate[:2], [-0.2, 0.01], atol=1e-9)
+    assert estimate[2] == pytest.approx(1.0)  # R^2: the revisits and the time explain it all
+    np.testing.assert_allclose(estimate[3:], 0.0, atol=1e-9)
+    assert "closed the loop first" not in markdown(rows, 50) and "| revisit share |" in markdown(rows, 50)
