@@ -53,14 +53,19 @@ def main() -> None:
     parser.add_argument("--seed", type=arguments.SEED, default=None,
                         help="the episode's seed (default: the benchmark's first held-out episode)")
     parser.add_argument("--agent-seed", type=arguments.SEED, default=0, help="which training seed's agents")
-    parser.add_argument("--baselines", nargs="*", default=["close_loop_first", "explore_first", "frontier"])
+    parser.add_argument("--baselines", nargs="*", default=["close_loop_first", "explore_first", "frontier"],
+                        help="scripted policies and shipped agents played beside the agents")
     parser.add_argument("--out", type=Path, default=Path("benchmark_paths.png"))
     args = parser.parse_args()
+    try:
+        baselines = arguments.baseline_policies(args.baselines)
+    except ValueError as error:
+        parser.error(str(error))
     models = agents_of(args.benchmark, args.agent_seed)
     seed = first_held_out_seed(args.benchmark) if args.seed is None else args.seed
     reference = models.get("emmi", next(iter(models.values())))
     settings, world = comparison_settings(RunFolder.config_of_model(reference))
-    policies = [TrainedAgent(str(path), f"{reward} agent") for reward, path in models.items()] + args.baselines
+    policies = [TrainedAgent(str(path), f"{reward} agent") for reward, path in models.items()] + baselines
     rows = [play_on_world(world, seed, policy, settings, keep_maps=True, keep_steps=True) for policy in policies]
     for row in rows:
         row["revisit_targets"] = sum(step["target_kind"] == "revisit" for step in row["steps"])
