@@ -32,7 +32,7 @@ def main() -> None:
     if len(args.folders) == 1 and benchmark.is_file():
         rows = read_csv(benchmark)
     else:
-        rows = pooled_episodes(args.folders)
+        rows = pooled_episodes(args.folders, traces=False)
     try:
         print(markdown(rows, args.bootstrap))
     except ValueError as error:

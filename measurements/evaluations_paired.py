@@ -23,16 +23,16 @@ from emmi_gym.tools.experiments.robot_time import TRACED, at_equal_robot_time, w
 KEYS = ("world", "seed", "policy")
 
 
-def pooled_episodes(folders: list[Path]) -> list[dict]:
-    """The episodes of every folder, each with its trace; ``SystemExit`` naming a file that is missing or not
-    one of ``evaluate``'s, or an episode that two folders hold."""
+def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
+    """The episodes of every folder, each with its trace (unless not ``traces``); ``SystemExit`` naming a file
+    that is missing or not one of ``evaluate``'s, or an episode that two folders hold."""
     rows, seen = [], {}
     for folder in folders:
         try:
             episodes = read_csv_file(folder / "episodes.csv", "episodes file", required=KEYS,
                                      optional_numeric=(*SCORES, "seed"))
             points = read_csv_file(folder / "traces.csv", "traces file", required=KEYS,
-                                   numeric=("sim_steps", *TRACED, "seed"))
+                                   numeric=("sim_steps", *TRACED, "seed")) if traces else []
         except (CsvFileError, OSError) as error:
             raise SystemExit(str(error)) from None
         for row in episodes:
