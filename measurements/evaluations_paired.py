@@ -7,8 +7,10 @@ baselines played once, of the final maps and at equal robot time (:mod:`emmi_gym
 
 Each FOLDER is the ``--out`` of ``emmi-gym evaluate`` (its ``episodes.csv`` and ``traces.csv``); the folders'
 episodes are pooled, and one (world, seed, policy) found in two of them is an error (give the agents distinct
-``--name`` s). For each baseline the two Markdown tables of ``evaluate`` go to stdout: the final maps, then at equal
-robot time.
+``--name`` s). For each policy and baseline the two Markdown tables of ``evaluate`` go to stdout: the final maps, then
+at equal robot time. With ``--compact``, two tables for all the policies instead, as a results page shows many
+agents: every policy's means (the baselines first), and each policy minus each baseline, final and at equal robot
+time, in the scores a page compares (:data:`COMPACT`).
 """
 
 from __future__ import annotations
@@ -16,11 +18,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
-from emmi_gym.tools.experiments.comparison import SCORES, markdown_table
-from emmi_gym.tools.experiments.robot_time import TRACED, at_equal_robot_time, with_traces
+from emmi_gym.tools.experiments.comparison import SCORES, difference_cell, markdown_table, paired
+from emmi_gym.tools.experiments.directions import format_number
+from emmi_gym.tools.experiments.robot_time import TIME, TRACED, at_equal_robot_time, with_traces
 
 KEYS = ("world", "seed", "policy")
+#: The scores of the compact tables: the map's quality, then how long the policy took and how often it went back.
+COMPACT = ("oracle_accuracy", "ate", "wall_consistency", "coverage", TIME)
 
 
 def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
@@ -45,21 +52,56 @@ def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
     return rows
 
 
+def means_table(rows: list[dict], policies: list[str]) -> str:
+    """Each of ``policies``' mean of the :data:`COMPACT` scores and its revisit share, a row each."""
+    columns = (*COMPACT, "revisit_share")
+    lines = ["| policy | episodes | " + " | ".join(SCORES[c] for c in columns) + " |",
+             "| --- | --- | " + " | ".join("---" for _ in columns) + " |"]
+    for name in policies:
+        mine = [row for row in rows if row["policy"] == name]
+        means = [format_number(np.nanmean([row.get(c, np.nan) for row in mine]), c) for c in columns]
+        lines.append(f"| {name} | {len(mine)} | " + " | ".join(means) + " |")
+    return "\n".join(lines)
+
+
+def differences_table(rows: list[dict], policies: list[str], baselines: list[str]) -> str:
+    """Each of ``policies`` minus each of ``baselines``, paired by (world, seed): the :data:`COMPACT` scores of the
+    final maps, then read at equal robot time (the robot time then: the mean of the shorter episodes)."""
+    lines = ["| policy minus | pairs | " + " | ".join(SCORES[c] for c in COMPACT) + " |",
+             "| --- | --- | " + " | ".join("---" for _ in COMPACT) + " |"]
+    for name in policies:
+        for baseline in baselines:
+            for when, read in (("final", rows), ("equal time", at_equal_robot_time(rows, name, baseline))):
+                cells = [difference_cell(paired(read, c, name, baseline), c) for c in COMPACT]
+                if when == "equal time":
+                    cells[-1] = "at " + format_number(np.mean([r[TIME] for r in read if r["policy"] == name]), TIME)
+                pairs = len(paired(read, "coverage", name, baseline))
+                lines.append(f"| {name} - {baseline}, {when} | {pairs} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="+", type=Path, help="--out folders of 'emmi-gym evaluate'")
-    parser.add_argument("--policy", required=True, help="the policy paired with each baseline")
-    parser.add_argument("--baselines", nargs="+", required=True, help="the policies it is paired with")
+    parser.add_argument("--policy", nargs="+", required=True, help="the policies paired with each baseline")
+    parser.add_argument("--baselines", nargs="+", required=True, help="the policies they are paired with")
+    parser.add_argument("--compact", action="store_true",
+                        help="two tables for all the policies: their means, and each minus each baseline")
     args = parser.parse_args()
     rows = pooled_episodes(args.folders)
     names = {row["policy"] for row in rows}
-    missing = sorted({args.policy, *args.baselines} - names)
+    missing = sorted({*args.policy, *args.baselines} - names)
     if missing:
         parser.error(f"{missing}: no episodes of them in the folders, which hold {sorted(names)}")
-    for baseline in args.baselines:
-        print(markdown_table(rows, args.policy, baseline, f"{args.policy} - {baseline}") + "\n")
-        print(markdown_table(at_equal_robot_time(rows, args.policy, baseline), args.policy, baseline,
-                             f"{args.policy} - {baseline} at equal robot time") + "\n")
+    if args.compact:
+        print(means_table(rows, [*args.baselines, *args.policy]) + "\n")
+        print(differences_table(rows, args.policy, args.baselines))
+        return
+    for policy in args.policy:
+        for baseline in args.baselines:
+            print(markdown_table(rows, policy, baseline, f"{policy} - {baseline}") + "\n")
+            print(markdown_table(at_equal_robot_time(rows, policy, baseline), policy, baseline,
+                                 f"{policy} - {baseline} at equal robot time") + "\n")
 
 
 if __name__ == "__main__":

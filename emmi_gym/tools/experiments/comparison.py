@@ -184,13 +184,18 @@ def markdown_table(rows: list[dict], policy: str, baseline: str, title: str) -> 
             m, lo, hi, n = measure_interval([r.get(column, np.nan) for r in rows if r["policy"] == name], column)
             cells.append(f"{format_number(m, column)} [{format_number(lo, column)}, {format_number(hi, column)}]")
         diff = paired(rows, column, policy, baseline)
-        m, lo, hi, n = difference_interval(diff, column)
         better = count_better(diff, column)
-        change = ", ".join(format_number(v, column, signed=True) for v in (lo, hi))
-        count = "-" if better is None else f"{better}/{n}"
+        count = "-" if better is None else f"{better}/{np.isfinite(diff).sum()}"
         lines.append(f"| {label} | {better_side(column)} | {cells[0]} | {cells[1]} | "
-                     f"{format_number(m, column, signed=True)} [{change}] | {count} |")
+                     f"{difference_cell(diff, column)} | {count} |")
     return "\n".join(lines)
+
+
+def difference_cell(differences, column: str) -> str:
+    """The mean of paired ``differences`` of ``column`` and its 95% interval, signed: ``+0.012 [-0.002, +0.026]``."""
+    m, lo, hi, _ = difference_interval(differences, column)
+    return f"{format_number(m, column, signed=True)} [" + ", ".join(
+        format_number(v, column, signed=True) for v in (lo, hi)) + "]"
 
 
 def plot_pair(rows: list[dict], path, columns: int | None = None) -> None:
