@@ -112,15 +112,16 @@ def run_state(job: Job) -> str:
     """What the agent job's run folder holds: ``"new"`` (nothing), ``"finished"`` (the finished model of the
     same configuration, started from the same model: a benchmark run again into the same folder evaluates
     it instead of training again), ``"unfinished"`` (a run of them that stopped before its end, or that
-    finished a smaller budget: resumed, to the budget asked), ``"larger"`` (a run of them to a larger budget
-    than asked: never cut back, nor reported under the smaller) or ``"other"`` (anything else); the last two
-    are refused by :func:`run_benchmark` before any job starts."""
+    finished a smaller budget: resumed, to the budget asked; a run continued by ``train --resume`` with what a
+    resumed run may change, such as rollout workers on a larger machine, is still theirs), ``"larger"`` (a run
+    of them to a larger budget than asked: never cut back, nor reported under the smaller) or ``"other"``
+    (anything else); the last two are refused by :func:`run_benchmark` before any job starts."""
     folder = RunFolder(job.run_dir)
     if not folder.entries():
         return "new"
     started_from = (folder.record() or {}).get("init_from")
     same = folder.config_path.is_file() and started_from == (None if job.init_from is None else str(job.init_from)) \
-        and not folder.differences(job.config, ignore=("total_timesteps",))
+        and not folder.differences(job.config)
     if not same:
         return "other"
     budget = folder.config().total_timesteps

@@ -374,3 +374,20 @@ def test_the_benchmark_refuses_a_run_folder_of_something_else_before_any_job(tmp
     with pytest.raises(RunError, match=f"{taken}: not empty, and not a run of this benchmark's configuration"):
         run_benchmark(config, ["emmi"], range(1), 16, 1, [], tmp_path, workers=1, progress=False)
     assert sorted(p.name for p in taken.iterdir()) == ["notes.txt"]
+
+
+def test_the_benchmark_resumes_its_run_continued_with_rollout_workers_and_refuses_other_hyperparameters(tmp_path):
+    """A benchmark's agent trained on by ``train --resume`` with rollout workers (a change a resumed run may make,
+    on a machine with cores to spare) is still the benchmark's run, to be resumed; another learning rate is not."""
+    from emmi_gym.tools.training.reward_benchmark import make_jobs, run_state
+    from emmi_gym.tools.training.run_folders import RunFolder
+
+    config = parse_agent_config(config_dict("PPO", hyper=PPO_SMALL, timesteps=64))
+    job = make_jobs(config, ["emmi"], range(1), 64, 1, [], tmp_path)[0]
+    folder = RunFolder(job.run_dir)
+    job.run_dir.mkdir(parents=True)
+    folder.write_config(replace(job.config, vec_env="workers", n_envs=2, checkpoint_freq=8))
+    assert run_state(job) == "unfinished"
+    hyperparameters = dict(job.config.hyperparameters, learning_rate=1e-3)
+    folder.write_config(replace(job.config, vec_env="workers", hyperparameters=hyperparameters))
+    assert run_state(job) == "other"
