@@ -19,6 +19,10 @@ an agent earn more than the policies whose maps are better (then its reward, not
 from them), or less (then the learning falls short of what the reward pays)? Give ``--options`` the agent's
 own env keywords.
 
+``--paired-with POLICY`` adds each policy's return minus POLICY's on the same episodes, with its 95% interval.
+``--episodes-from FILE ...`` reads the ``episodes.json`` of earlier runs (``--out``) instead of playing, pooled: an
+agent played later beside the policies played once (an episode two files hold must be the same in both).
+
 ``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
 every ``--seeds``) or worlds (names, files: one episode per seed). Choose on the train split; the
 test split is for reporting.
@@ -37,7 +41,15 @@ from emmi_gym.env import REWARDS, EnvConfig
 from emmi_gym.inputs.validation import build
 from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.comparison import ComparisonSettings, compare_on, policy_name, worlds_of
-from emmi_gym.tools.experiments.reward_alignment import QUALITIES, Discount, alignment, markdown, policy_front
+from emmi_gym.tools.experiments.reward_alignment import (
+    QUALITIES,
+    Discount,
+    alignment,
+    markdown,
+    paired_markdown,
+    paired_returns,
+    policy_front,
+)
 from emmi_gym.tools.training.evaluate import TrainedAgent
 
 
@@ -57,14 +69,20 @@ def main() -> None:
     parser.add_argument("--discounts", nargs="+", default=["none", "0.9@100", "0.99@100"],
                         help="'none', GAMMA (per decision) or GAMMA@STEPS (per STEPS simulator steps)")
     arguments.add_workers(parser)
+    parser.add_argument("--paired-with", metavar="POLICY",
+                        help="also each policy's return minus this policy's, paired by episode, with 95%% intervals")
+    parser.add_argument("--episodes-from", nargs="+", type=Path, metavar="FILE",
+                        help="episodes.json files of earlier runs, pooled, instead of playing")
     parser.add_argument("--out", type=Path, default=None, help="write summary.md and episodes.json here")
     args = parser.parse_args()
+    if args.episodes_from:
+        rows = pooled_episodes(parser, args.episodes_from)
+        report(parser, args, rows, discounts_of(parser, args),
+               f"Reward alignment over {', '.join(map(str, args.episodes_from))}")
+        return
     if args.env_id not in gym.registry:
         parser.error(f"--env-id: no environment {args.env_id!r} is registered")
-    try:
-        discounts = [Discount.parse(text) for text in args.discounts]
-    except ValueError as error:
-        parser.error(f"--discounts: {error}")
+    discounts = discounts_of(parser, args)
     try:
         policies = arguments.baseline_policies(args.policies, "--policies")
     except ValueError as error:
@@ -78,16 +96,59 @@ def main() -> None:
     episodes = [(w, s) for w in worlds_of(args.worlds, args.plans) for s in arguments.seed_range(args)]
     rows = compare_on(episodes, policies, settings, workers=args.workers, keep_steps=True,
                       start_method="spawn" if args.models else None)  # torch and fork do not mix
-    results = alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES))
     title = (f"Reward alignment on {args.env_id}{f' {settings.env_options}' if settings.env_options else ''}: "
              f"{len(episodes)} episodes ({', '.join(args.worlds)}; seeds from {args.first_seed}) of "
              f"{', '.join(policy_name(policy) for policy in policies)}")
-    table = markdown(results, policy_front(rows), title)
+    report(parser, args, rows, discounts, title)
+
+
+def discounts_of(parser: argparse.ArgumentParser, args) -> list[Discount]:
+    """``--discounts`` parsed; a malformed one is a usage error naming it."""
+    try:
+        return [Discount.parse(text) for text in args.discounts]
+    except ValueError as error:
+        parser.error(f"--discounts: {error}")
+
+
+def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: list[Discount], title: str) -> None:
+    """The alignment tables of ``rows`` (and the paired returns, with ``--paired-with``) to stdout and ``--out``."""
+    table = markdown(alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES)), policy_front(rows),
+                     title)
+    if args.paired_with is not None:
+        if args.paired_with not in {row["policy"] for row in rows}:
+            parser.error(f"--paired-with: no episodes of {args.paired_with!r}")
+        table += "\n\n" + paired_markdown(paired_returns(rows, args.rewards, args.time_costs, discounts,
+                                                         args.paired_with), args.paired_with)
     print(table)
     if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "summary.md").write_text(table + "\n")
         (args.out / "episodes.json").write_text(json.dumps(rows))
         print(f"\nwrote {args.out / 'summary.md'} and {args.out / 'episodes.json'}")
+
+
+def pooled_episodes(parser: argparse.ArgumentParser, files: list[Path]) -> list[dict]:
+    """The episodes (with their steps) of earlier runs' ``episodes.json``, pooled; one (world, seed, policy) in two
+    files is kept once if the two are the same episode, and a usage error if they differ."""
+    rows, seen = [], {}
+    for path in files:
+        try:
+            episodes = json.loads(path.read_text())
+        except OSError as error:
+            parser.error(f"--episodes-from: {path}: cannot be read ({error.strerror or error})")
+        except (UnicodeDecodeError, json.JSONDecodeError) as error:
+            parser.error(f"--episodes-from: {path}: not an episodes.json of this script ({error})")
+        if not isinstance(episodes, list) or not all(isinstance(row, dict) and "steps" in row for row in episodes):
+            parser.error(f"--episodes-from: {path}: a list of episodes with their steps expected")
+        for row in episodes:
+            key = (row.get("world"), row.get("seed"), row.get("policy"))
+            if key in seen:
+                if seen[key][1] != row:
+                    parser.error(f"--episodes-from: {path}: the episode {key} differs from the one in {seen[key][0]}")
+                continue
+            seen[key] = (path, row)
+            rows.append(row)
+    return rows
 
 
 def model_argument(parser: argparse.ArgumentParser, text: str) -> tuple[str, str]:

@@ -14,7 +14,9 @@ episode ended with:
   subtracting each episode's mean over the policies (what varies between policies on the same
   plan, not between easy and hard plans);
 - **preferred**: the policy with the highest mean return: where on the front of map quality
-  against robot time the reward points a learner.
+  against robot time the reward points a learner;
+- **paired against a policy** (:func:`paired_returns`): each policy's return minus that policy's on the
+  same episodes, with its 95% interval: whether a mean return's lead is more than the episodes' spread.
 
 A reward's scale and the time cost act only through their ratio, so varying the time cost covers
 the scales too. Discounts follow :mod:`emmi_gym.tools.training.semi_markov`: ``gamma`` per decision or
@@ -28,6 +30,8 @@ from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
+
+from .intervals import mean_interval
 
 #: Final map qualities compared, each with the sign that makes higher better.
 QUALITIES = {"oracle_accuracy": 1.0, "ate": -1.0}
@@ -139,6 +143,36 @@ def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple
                     result[f"r {quality}"] = _within_correlation(episodes, returns, quality)
                 results.append(result)
     return results
+
+
+def paired_returns(rows: list[dict], variants, time_costs, discounts, against: str) -> list[dict]:
+    """For each (variant, time cost, discount), each policy's discounted return minus ``against``'s on the
+    episodes (world, seed) both played: ``{"reward", "time_cost", "discount", "policy", "difference", "low",
+    "high", "episodes"}`` (mean and Student-t 95% interval)."""
+    episodes = _episodes(rows)
+    policies = [p for p in dict.fromkeys(row["policy"] for row in rows) if p != against]
+    results = []
+    for variant in variants:
+        for time_cost in time_costs:
+            for discount in discounts:
+                for policy in policies:
+                    differences = [discounted_return(by_policy[policy]["steps"], variant, time_cost, discount)
+                                   - discounted_return(by_policy[against]["steps"], variant, time_cost, discount)
+                                   for by_policy in episodes.values() if policy in by_policy and against in by_policy]
+                    mean, low, high, n = mean_interval(differences)
+                    results.append({"reward": variant, "time_cost": time_cost, "discount": discount.label,
+                                    "policy": policy, "difference": mean, "low": low, "high": high, "episodes": n})
+    return results
+
+
+def paired_markdown(results: list[dict], against: str) -> str:
+    """:func:`paired_returns` as a markdown table."""
+    lines = [f"Return minus {against}'s on the same episodes, mean [95% interval]:", "",
+             "| reward | time_cost | discount | policy | minus " + against + " | episodes |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    lines += [f"| {r['reward']} | {r['time_cost']:g} | {r['discount']} | {r['policy']} | {_format(r['difference'])} "
+              f"[{_format(r['low'])}, {_format(r['high'])}] | {r['episodes']} |" for r in results]
+    return "\n".join(lines)
 
 
 def policy_front(rows: list[dict], qualities=tuple(QUALITIES)) -> list[dict]:

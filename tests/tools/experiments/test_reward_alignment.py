@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 
 from emmi_gym.tools.experiments.comparison import ComparisonSettings, compare_on
-from emmi_gym.tools.experiments.reward_alignment import Discount, alignment, discounted_return, markdown, policy_front
+from emmi_gym.tools.experiments.reward_alignment import (
+    Discount,
+    alignment,
+    discounted_return,
+    markdown,
+    paired_markdown,
+    paired_returns,
+    policy_front,
+)
 
 
 def step(emmi=0.0, coverage=0.0, duration=100, collision=0.0):
@@ -48,6 +56,18 @@ def test_agreement_and_correlation_rank_the_better_map_against_the_higher_return
     front = {row["policy"]: row for row in policy_front(rows)}
     assert front["slow"]["sim_steps"] == 300 and front["fast"]["oracle_accuracy"] == pytest.approx(0.75)
     assert "| coverage | 0.01 | none |" in markdown(list(results.values()), policy_front(rows), "t")
+
+
+def test_returns_paired_with_a_policy_give_the_difference_on_each_episode_and_its_interval():
+    rows = [episode(w, p, 0.9, 0.2, [step(emmi=e)]) for w, p, e in
+            (("a", "base", 1.0), ("a", "agent", 1.5), ("b", "base", 2.0), ("b", "agent", 2.1), ("c", "base", 0.0),
+             ("c", "agent", 0.4), ("d", "agent", 9.0))]   # no "base" on d: not paired
+    (result,) = paired_returns(rows, ["emmi"], [0.0], [Discount()], "base")
+    assert result["policy"] == "agent" and result["episodes"] == 3
+    assert result["difference"] == pytest.approx(1.0 / 3.0)
+    half_width = 4.302653 * np.std([0.5, 0.1, 0.4], ddof=1) / np.sqrt(3)   # Student's t, 2 degrees of freedom
+    assert (result["low"], result["high"]) == pytest.approx((1 / 3 - half_width, 1 / 3 + half_width), rel=1e-5)
+    assert "| emmi | 0 | none | agent | +0.333 [" in paired_markdown([result], "base")
 
 
 def test_kept_steps_add_up_to_the_return_the_env_paid():
