@@ -37,6 +37,10 @@ def add_parser(subparsers) -> None:
                        help="with --init-from: accept a model that already holds --timesteps decisions (the agents "
                             "are then that model, evaluated under each reward's env)")
     arguments.add_workers(bench)
+    bench.add_argument("--rollout-workers", action="store_true",
+                       help="run each agent's envs in rollout workers, a process per env (the configuration's "
+                            "n_envs), instead of in the agent's process: for a machine with more cores than the "
+                            "agents trained at once")
     arguments.add_ray(bench, "run the agents' training and evaluation as Ray tasks instead of local processes")
     bench.add_argument("--out", default="benchmark_out",
                        help="folder for the agents' run folders, the episodes, summary and figures (default "
@@ -67,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     results = run_benchmark(config, args.rewards, arguments.seed_range(args), args.timesteps, args.episodes,
                             baselines, args.out, workers=args.workers, ray_address=ray_address,
                             progress=not args.quiet, init_from=args.init_from,
-                            allow_no_training=args.allow_no_training, eval_seed=args.eval_seed, report=print)
+                            allow_no_training=args.allow_no_training, eval_seed=args.eval_seed,
+                            rollout_workers=args.rollout_workers, report=print)
     elapsed = time.perf_counter() - started
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "

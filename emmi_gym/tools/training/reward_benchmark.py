@@ -134,12 +134,14 @@ def run_state(job: Job) -> str:
 
 
 def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir,
-              init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED) -> list[Job]:
+              init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED,
+              rollout_workers: bool = False) -> list[Job]:
     """The agents (one per reward and seed, trained with ``dummy`` vectorisation: the jobs run in
-    parallel already; each from the weights of the model ``init_from``, if given, as ``train
-    --init-from``) and one job per baseline (a scripted policy's name, or a trained agent:
-    :class:`~emmi_gym.tools.training.evaluate.TrainedAgent`, checked to act in the benchmark's
-    evaluation env); every job is evaluated on the ``episodes`` held-out episodes seeded from
+    parallel already; with ``rollout_workers``, each agent's envs in rollout workers instead, one process
+    per env, for a machine with more cores than agents; policy lag 0 either way; each from the weights of the
+    model ``init_from``, if given, as ``train --init-from``) and one job per baseline (a scripted policy's
+    name, or a trained agent: :class:`~emmi_gym.tools.training.evaluate.TrainedAgent`, checked to act in the
+    benchmark's evaluation env); every job is evaluated on the ``episodes`` held-out episodes seeded from
     ``eval_seed``."""
     from ..policies import POLICY_NAMES
 
@@ -164,7 +166,7 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
     for reward in rewards:
         for seed in seeds:
             agent = replace(config, env_kwargs=dict(config.env_kwargs, reward=reward), seed=int(seed),
-                            total_timesteps=int(timesteps), vec_env="dummy",
+                            total_timesteps=int(timesteps), vec_env="workers" if rollout_workers else "dummy",
                             policy_lag=0)
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
                             eval_seed, init_from, allow_no_training))
@@ -201,14 +203,15 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
 def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
                   workers: int | None = None, ray_address: str | None = None, progress: bool = True,
                   init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED,
-                  report=None) -> list[dict]:
+                  rollout_workers: bool = False, report=None) -> list[dict]:
     """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed.
     ``init_from`` (a model every agent starts from, as ``train``'s) and the run folders (:func:`run_state`)
-    are checked before any job starts; ``report``: called with a sentence saying where the agents start and
-    how many decisions each will train."""
+    are checked before any job starts; ``rollout_workers``: each agent's envs in rollout workers
+    (:func:`make_jobs`); ``report``: called with a sentence saying where the agents start and how many
+    decisions each will train."""
     init_from = None if init_from is None else Path(init_from)
     jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from, allow_no_training,
-                     eval_seed)
+                     eval_seed, rollout_workers)
     agents = [job for job in jobs if job.kind == "agent"]
     if init_from is not None and agents:
         start = RunFolder.check_init_from(init_from, agents[0].config, allow_no_training)

@@ -544,6 +544,23 @@ def test_benchmark_in_local_worker_processes_with_a_trained_agent_as_a_baseline(
 
 
 @pytest.mark.slow
+def test_benchmark_agents_can_play_in_rollout_workers_of_their_own(tmp_path):
+    """--rollout-workers: each agent's envs in processes of their own (a machine with more cores than agents); the
+    run is the benchmark's own when run again without the option (resumed, not refused)."""
+    config = parse_agent_config(config_dict("PPO", {"max_decisions": 4}, {"n_steps": 8, "batch_size": 16,
+                                                                          "n_epochs": 1},
+                                            env_id="emmi_gym/Explore-v1", n_envs=2))
+    results = run_benchmark(config, ["coverage"], range(1), 16, 1, [], tmp_path, workers=1, progress=False,
+                            rollout_workers=True)
+    run = tmp_path / "runs" / "coverage_seed0"
+    assert RunFolder(run).config().vec_env == "workers" and RunFolder(run).finished_decisions() == 16
+    assert results[0]["trained"] and len(results[0]["rows"]) == 1
+    again = run_benchmark(config, ["coverage"], range(1), 32, 1, [], tmp_path, workers=1, progress=False)
+    assert again[0]["trained"] and RunFolder(run).finished_decisions() == 32
+    assert RunFolder(run).config().vec_env == "dummy"
+
+
+@pytest.mark.slow
 def test_benchmark_on_a_local_ray_instance(tmp_path):
     pytest.importorskip("ray")
     local = _tiny_benchmark(tmp_path / "local", workers=1)
