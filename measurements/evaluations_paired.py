@@ -26,7 +26,7 @@ from emmi_gym.tools.experiments.directions import format_number
 from emmi_gym.tools.experiments.robot_time import TIME, TRACED, at_equal_robot_time, with_traces
 
 KEYS = ("world", "seed", "policy")
-#: The scores of the compact tables: the map's quality, then how long the policy took and how often it went back.
+#: The scores of the compact tables: the final map's quality, then the robot time.
 COMPACT = ("oracle_accuracy", "ate", "wall_consistency", "coverage", TIME)
 
 
