@@ -90,6 +90,12 @@ def _episodes(rows: list[dict]) -> dict[tuple, dict[str, dict]]:
     return grouped
 
 
+def _returns(episodes, variant: str, time_cost: float, discount: Discount) -> dict[tuple, float]:
+    """Every episode's discounted return under ``variant``, keyed ``((world, seed), policy)``."""
+    return {(key, p): discounted_return(row["steps"], variant, time_cost, discount)
+            for key, by_policy in episodes.items() for p, row in by_policy.items()}
+
+
 def _agreement(episodes, returns, quality: str) -> tuple[int, int]:
     """(pairs where the better map earned more, pairs whose maps differ)."""
     sign, agree, pairs = QUALITIES[quality], 0, 0
@@ -131,8 +137,7 @@ def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple
     for variant in variants:
         for time_cost in time_costs:
             for discount in discounts:
-                returns = {(key, p): discounted_return(row["steps"], variant, time_cost, discount)
-                           for key, by_policy in episodes.items() for p, row in by_policy.items()}
+                returns = _returns(episodes, variant, time_cost, discount)
                 means = {p: float(np.mean([v for (_, q), v in returns.items() if q == p])) for p in policies}
                 result = {"reward": variant, "time_cost": time_cost, "discount": discount.label,
                           **{f"return {p}": means[p] for p in policies},
@@ -155,10 +160,10 @@ def paired_returns(rows: list[dict], variants, time_costs, discounts, against: s
     for variant in variants:
         for time_cost in time_costs:
             for discount in discounts:
+                returns = _returns(episodes, variant, time_cost, discount)
                 for policy in policies:
-                    differences = [discounted_return(by_policy[policy]["steps"], variant, time_cost, discount)
-                                   - discounted_return(by_policy[against]["steps"], variant, time_cost, discount)
-                                   for by_policy in episodes.values() if policy in by_policy and against in by_policy]
+                    differences = [returns[key, policy] - returns[key, against] for key, by_policy in episodes.items()
+                                   if policy in by_policy and against in by_policy]
                     mean, low, high, n = mean_interval(differences)
                     results.append({"reward": variant, "time_cost": time_cost, "discount": discount.label,
                                     "policy": policy, "difference": mean, "low": low, "high": high, "episodes": n})
