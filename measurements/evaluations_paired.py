@@ -10,7 +10,8 @@ episodes are pooled, and one (world, seed, policy) found in two of them is an er
 ``--name`` s). For each policy and baseline the two Markdown tables of ``evaluate`` go to stdout: the final maps, then
 at equal robot time. With ``--compact``, two tables for all the policies instead, as a results page shows many
 agents: every policy's means (the baselines first), and each policy minus each baseline, final and at equal robot
-time, in the scores a page compares (:data:`COMPACT`).
+time, in the scores a page compares (:data:`COMPACT`); ``--at final`` or ``--at equal_time`` keeps one of the two,
+as many agents' differences fill a page each.
 """
 
 from __future__ import annotations
@@ -64,19 +65,26 @@ def means_table(rows: list[dict], policies: list[str]) -> str:
     return "\n".join(lines)
 
 
-def differences_table(rows: list[dict], policies: list[str], baselines: list[str]) -> str:
+#: When the compact differences read the episodes: their final maps, and at equal robot time.
+MOMENTS = ("final", "equal_time")
+
+
+def differences_table(rows: list[dict], policies: list[str], baselines: list[str], moments=MOMENTS) -> str:
     """Each of ``policies`` minus each of ``baselines``, paired by (world, seed): the :data:`COMPACT` scores of the
-    final maps, then read at equal robot time (the robot time then: the mean of the shorter episodes)."""
+    final maps, then read at equal robot time (the robot time then: the mean of the shorter episodes); only the
+    ``moments`` of :data:`MOMENTS` given."""
     lines = ["| policy minus | pairs | " + " | ".join(SCORES[c] for c in COMPACT) + " |",
              "| --- | --- | " + " | ".join("---" for _ in COMPACT) + " |"]
     for name in policies:
         for baseline in baselines:
-            for when, read in (("final", rows), ("equal time", at_equal_robot_time(rows, name, baseline))):
+            for when in moments:
+                read = rows if when == "final" else at_equal_robot_time(rows, name, baseline)
                 cells = [difference_cell(paired(read, c, name, baseline), c) for c in COMPACT]
-                if when == "equal time":
+                if when == "equal_time":
                     cells[-1] = "at " + format_number(np.mean([r[TIME] for r in read if r["policy"] == name]), TIME)
                 pairs = len(paired(read, "coverage", name, baseline))
-                lines.append(f"| {name} - {baseline}, {when} | {pairs} | " + " | ".join(cells) + " |")
+                label = "" if len(moments) == 1 else ", " + when.replace("_", " ")
+                lines.append(f"| {name} - {baseline}{label} | {pairs} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -87,6 +95,8 @@ def main() -> None:
     parser.add_argument("--baselines", nargs="+", required=True, help="the policies they are paired with")
     parser.add_argument("--compact", action="store_true",
                         help="two tables for all the policies: their means, and each minus each baseline")
+    parser.add_argument("--at", nargs="+", choices=MOMENTS, default=list(MOMENTS),
+                        help="with --compact: the differences of the final maps, at equal robot time, or both")
     args = parser.parse_args()
     rows = pooled_episodes(args.folders)
     names = {row["policy"] for row in rows}
@@ -95,7 +105,7 @@ def main() -> None:
         parser.error(f"{missing}: no episodes of them in the folders, which hold {sorted(names)}")
     if args.compact:
         print(means_table(rows, [*args.baselines, *args.policy]) + "\n")
-        print(differences_table(rows, args.policy, args.baselines))
+        print(differences_table(rows, args.policy, args.baselines, args.at))
         return
     for policy in args.policy:
         for baseline in args.baselines:

@@ -171,12 +171,19 @@ def paired_returns(rows: list[dict], variants, time_costs, discounts, against: s
 
 
 def paired_markdown(results: list[dict], against: str) -> str:
-    """:func:`paired_returns` as a markdown table."""
+    """:func:`paired_returns` as a markdown table: a row per policy, a column per return (reward, time cost,
+    discount), each cell the mean difference and its interval, as a page compares many policies."""
+    returns = list(dict.fromkeys((r["reward"], r["time_cost"], r["discount"]) for r in results))
+    cells = {(r["policy"], (r["reward"], r["time_cost"], r["discount"])):
+             f"{_format(r['difference'])} [{_format(r['low'])}, {_format(r['high'])}]" for r in results}
     lines = [f"Return minus {against}'s on the same episodes, mean [95% interval]:", "",
-             "| reward | time_cost | discount | policy | minus " + against + " | episodes |",
-             "| --- | --- | --- | --- | --- | --- |"]
-    lines += [f"| {r['reward']} | {r['time_cost']:g} | {r['discount']} | {r['policy']} | {_format(r['difference'])} "
-              f"[{_format(r['low'])}, {_format(r['high'])}] | {r['episodes']} |" for r in results]
+             "| policy | episodes | " + " | ".join(f"{reward}, {time_cost:g}, {discount}"
+                                                   for reward, time_cost, discount in returns) + " |",
+             "| --- | --- |" + " --- |" * len(returns)]
+    for policy in dict.fromkeys(r["policy"] for r in results):
+        episodes = max(r["episodes"] for r in results if r["policy"] == policy)
+        lines.append(f"| {policy} | {episodes} | " + " | ".join(cells.get((policy, key), "-") for key in returns)
+                     + " |")
     return "\n".join(lines)
 
 
