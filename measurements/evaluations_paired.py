@@ -25,6 +25,7 @@ from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
 from emmi_gym.tools.experiments.comparison import SCORES, difference_cell, markdown_table, paired
 from emmi_gym.tools.experiments.directions import format_number
 from emmi_gym.tools.experiments.robot_time import TIME, TRACED, at_equal_robot_time, with_traces
+from emmi_gym.world.map_sets import world_name
 
 KEYS = ("world", "seed", "policy")
 #: The scores of the compact tables: the final map's quality, then the robot time.
@@ -32,8 +33,10 @@ COMPACT = ("oracle_accuracy", "ate", "wall_consistency", "coverage", TIME)
 
 
 def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
-    """The episodes of every folder, each with its trace (unless not ``traces``); ``SystemExit`` naming a file
-    that is missing or not one of ``evaluate``'s, or an episode that two folders hold."""
+    """The episodes of every folder, each with its trace (unless not ``traces``), a world named as
+    :func:`~emmi_gym.world.map_sets.world_name` says (so that evaluations made from two installs pair);
+    ``SystemExit`` naming a file that is missing or not one of ``evaluate``'s, or an episode that two folders
+    hold."""
     rows, seen = [], {}
     for folder in folders:
         try:
@@ -43,6 +46,8 @@ def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
                                    numeric=("sim_steps", *TRACED, "seed")) if traces else []
         except (CsvFileError, OSError) as error:
             raise SystemExit(str(error)) from None
+        for row in (*episodes, *points):
+            row["world"] = world_name(row["world"])
         for row in episodes:
             key = tuple(row[k] for k in KEYS)
             if key in seen:
@@ -103,6 +108,14 @@ def main() -> None:
     missing = sorted({*args.policy, *args.baselines} - names)
     if missing:
         parser.error(f"{missing}: no episodes of them in the folders, which hold {sorted(names)}")
+    played = {}
+    for row in rows:
+        played.setdefault(row["policy"], set()).add((row["world"], row["seed"]))
+    for policy in args.policy:
+        for baseline in args.baselines:
+            if not played[policy] & played[baseline]:
+                parser.error(f"{policy} and {baseline} played no episode on the same world and seed, so none pairs "
+                             f"them: e.g. {min(played[policy])} against {min(played[baseline])}")
     if args.compact:
         print(means_table(rows, [*args.baselines, *args.policy]) + "\n")
         print(differences_table(rows, args.policy, args.baselines, args.at))

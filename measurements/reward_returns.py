@@ -51,6 +51,7 @@ from emmi_gym.tools.experiments.reward_alignment import (
     policy_front,
 )
 from emmi_gym.tools.training.evaluate import TrainedAgent
+from emmi_gym.world.map_sets import world_name
 
 
 def main() -> None:
@@ -117,8 +118,11 @@ def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: l
     if args.paired_with is not None:
         if args.paired_with not in {row["policy"] for row in rows}:
             parser.error(f"--paired-with: no episodes of {args.paired_with!r}")
-        table += "\n\n" + paired_markdown(paired_returns(rows, args.rewards, args.time_costs, discounts,
-                                                         args.paired_with), args.paired_with)
+        try:
+            paired = paired_returns(rows, args.rewards, args.time_costs, discounts, args.paired_with)
+        except ValueError as error:
+            parser.error(f"--paired-with: {error}")
+        table += "\n\n" + paired_markdown(paired, args.paired_with)
     print(table)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -129,7 +133,8 @@ def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: l
 
 def pooled_episodes(parser: argparse.ArgumentParser, files: list[Path]) -> list[dict]:
     """The episodes (with their steps) of earlier runs' ``episodes.json``, pooled; one (world, seed, policy) in two
-    files is kept once if the two are the same episode, and a usage error if they differ."""
+    files is kept once if the two are the same episode, and a usage error if they differ. A world is named as
+    :func:`~emmi_gym.world.map_sets.world_name` says, so that runs made from two installs pair."""
     rows, seen = [], {}
     for path in files:
         try:
@@ -141,6 +146,8 @@ def pooled_episodes(parser: argparse.ArgumentParser, files: list[Path]) -> list[
         if not isinstance(episodes, list) or not all(isinstance(row, dict) and "steps" in row for row in episodes):
             parser.error(f"--episodes-from: {path}: a list of episodes with their steps expected")
         for row in episodes:
+            if "world" in row:
+                row["world"] = world_name(row["world"])
             key = (row.get("world"), row.get("seed"), row.get("policy"))
             if key in seen:
                 if seen[key][1] != row:

@@ -84,7 +84,8 @@ class EnvConfig:
 
     world: str | None = option(
         "loop_corridor", Maybe(Text(), "a generated world per reset"),
-        help="a built-in name, world or map_server file, floor-plan image, map set or 'loop_order'; None: generated")
+        help="a built-in name, world or map_server file, floor-plan image, a shipped set's plan "
+             "('dungeon_maps/test/img_10011.png'), map set or 'loop_order'; None: generated")
     generator: dict = option({}, Mapping(),
                              help="GeneratorConfig fields (world=None) or LoopWorldConfig ones (world='loop_order')")
     pixel_size: float = option(DEFAULT_PIXEL_SIZE, PIXEL_SIZE,

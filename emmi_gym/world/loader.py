@@ -69,8 +69,13 @@ def _looks_numeric(text: str) -> bool:
 _BUILTIN_FOLDERS = (".", "buildings")
 
 
+def worlds_data_root() -> Path:
+    """The folder of the worlds and map sets shipped with the package."""
+    return Path(str(resources.files("emmi_gym.worlds_data")))
+
+
 def _builtin_files() -> dict[str, Path]:
-    root = Path(str(resources.files("emmi_gym.worlds_data")))
+    root = worlds_data_root()
     return {path.stem: path for folder in _BUILTIN_FOLDERS for path in sorted((root / folder).glob("*.yaml"))}
 
 
@@ -83,9 +88,12 @@ def builtin_worlds() -> list[str]:
 def load_world(name_or_path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> WorldSpec:
     """Load a world: a built-in name (``"loop_corridor"``, ``"intel"``), a world file (``.yaml``), a
     ROS map_server map (its ``.yaml``) or a floor-plan image (``.png``/``.pgm``, DungeonMaps colour
-    rules, ``pixel_size`` metres per pixel); see :mod:`emmi_gym.world.images`."""
+    rules, ``pixel_size`` metres per pixel; see :mod:`emmi_gym.world.images`); a map of a shipped map set
+    by its name in the set (``"dungeon_maps/test/img_10011.png"``) where no such file is in the working folder."""
     name = str(name_or_path)
     path = Path(name)
+    if not path.exists() and not path.is_absolute() and (worlds_data_root() / path).is_file():
+        path = worlds_data_root() / path
     builtin = _builtin_files()
     if path.suffix.lower() not in IMAGE_SUFFIXES + YAML_SUFFIXES and not path.exists():
         if name not in builtin:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import glob
 from collections import OrderedDict
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -24,13 +23,16 @@ from ..inputs.errors import excerpt
 from ..inputs.yaml_files import YAML_SUFFIXES
 from .generator import GeneratorConfig, generate_world
 from .images import DEFAULT_PIXEL_SIZE, IMAGE_SUFFIXES
-from .loader import load_world
+from .loader import load_world, worlds_data_root
 from .loop_worlds import LoopWorldConfig, generate_loop_world
 from .spec import WorldSpec
 
 #: Families of generated worlds, by the ``world`` name that draws one per reset: their options' class and
 #: their generator. ``world=None`` draws the lattice worlds of :func:`generate_world`.
 WORLD_FAMILIES = {"loop_order": (LoopWorldConfig, generate_loop_world)}
+
+#: The folder of the package's shipped worlds, as it appears in a path to one of them wherever it is installed.
+_SHIPPED_FOLDER = "emmi_gym/worlds_data/"
 
 #: Worlds of a set kept loaded (a plan's spec takes a few kB).
 CACHED_WORLDS = 512
@@ -39,9 +41,19 @@ _GLOB_CHARS = set("*?[")
 
 def builtin_map_sets() -> list[str]:
     """Names of the map sets shipped with the package (folders of maps under ``worlds_data``)."""
-    root = Path(str(resources.files("emmi_gym.worlds_data")))
+    root = worlds_data_root()
     return sorted(str(folder.relative_to(root)) for folder in root.glob("*/*") if folder.is_dir() and
                   _map_files(folder))
+
+
+def world_name(world) -> str:
+    """How episode records name ``world``: a map of a shipped set by its name in the set
+    (``"dungeon_maps/test/img_10011.png"``, which :func:`~emmi_gym.world.loader.load_world` loads), wherever the
+    package is installed, so that evaluations made from two installs pair by world; anything else as given. A path
+    into another install's shipped worlds, as records of earlier versions hold, gets the same name."""
+    text = str(world)
+    shipped = text.replace("\\", "/").rpartition(_SHIPPED_FOLDER)
+    return shipped[2] if shipped[1] and shipped[2] else text
 
 
 def _map_files(folder: Path) -> list[Path]:
@@ -53,7 +65,7 @@ def map_set_files(name: str) -> list[Path] | None:
     """The map files of the set ``name``, or None if ``name`` does not name a set (a folder, a glob, a
     shipped set); a set that matches no map file is an error."""
     if name in builtin_map_sets():
-        return _map_files(Path(str(resources.files("emmi_gym.worlds_data"))) / name)
+        return _map_files(worlds_data_root() / name)
     if _GLOB_CHARS & set(name):
         files = sorted(Path(p) for p in glob.glob(name) if Path(p).suffix.lower() in IMAGE_SUFFIXES + YAML_SUFFIXES)
         if not files:

@@ -14,7 +14,7 @@ from scipy import ndimage
 import emmi_gym  # noqa: F401 (registers the ids)
 from emmi_gym.world import FREE, OCCUPIED, UNKNOWN, WorldFileError, load_world, rasterise
 from emmi_gym.world.images import dungeon_occupancy, map_server_occupancy
-from emmi_gym.world.map_sets import WorldSource, builtin_map_sets, map_set_files
+from emmi_gym.world.map_sets import WorldSource, builtin_map_sets, map_set_files, world_name
 
 PLANS = ROOT / "emmi_gym" / "worlds_data" / "dungeon_maps"
 PLAN = PLANS / "test" / "img_10011.png"
@@ -147,6 +147,18 @@ def test_map_sets_are_drawn_per_seed_and_named_three_ways(tmp_path):
     with pytest.raises(ValueError, match="matches no map file"):
         map_set_files(str(tmp_path / "*.gif"))
     assert map_set_files("loop_corridor") is None
+
+
+def test_a_shipped_plan_is_named_by_its_set_wherever_installed_and_loads_by_that_name(tmp_path, monkeypatch):
+    """Evaluations made from two installs (a clone and a worktree, two machines) pair by world: a shipped plan's
+    records name it in its set, not by the install's path, and that name loads it."""
+    plan = map_set_files("dungeon_maps/test")[0]
+    assert world_name(plan) == f"dungeon_maps/test/{plan.name}"
+    assert world_name(f"/elsewhere/site-packages/emmi_gym/worlds_data/dungeon_maps/test/{plan.name}") == \
+        world_name(plan)
+    assert world_name(tmp_path / "own.png") == str(tmp_path / "own.png") and world_name(None) == "None"
+    monkeypatch.chdir(tmp_path)
+    np.testing.assert_array_equal(load_world(world_name(plan)).walls, load_world(plan).walls)
 
 
 def test_explore_draws_plans_from_a_set_deterministically():

@@ -74,10 +74,26 @@ def fit(score: np.ndarray, predictors: np.ndarray, worlds: np.ndarray, policies:
     return np.concatenate([coefficients, [r2], means])
 
 
+def _on_shared_worlds(rows: list[dict]) -> list[dict]:
+    """The ``rows`` on the worlds every policy played (a world one policy lacks compares nothing); a
+    ``ValueError`` if there is none, as when evaluations made on different worlds or seeds are pooled."""
+    played: dict = {}
+    for row in rows:
+        played.setdefault(world_of(row), set()).add(policy_name(row))
+    everyone = {policy_name(row) for row in rows}
+    shared = {world for world, policies in played.items() if policies == everyone}
+    if not shared:
+        examples = {name: next(world for world, policies in played.items() if name in policies)
+                    for name in sorted(everyone)}
+        raise ValueError("no world and seed was played by every policy, so none compares them: "
+                         + "; ".join(f"{name} played e.g. {world}" for name, world in examples.items()))
+    return [row for row in rows if world_of(row) in shared]
+
+
 def attribution(rows: list[dict], score: str, bootstrap: int, seed: int = 0):
-    """The estimate of :func:`fit` on the episode ``rows`` (``read_csv`` of a ``benchmark_episodes.csv``),
-    its 95% interval from ``bootstrap`` resamplings of the worlds (drawn with ``seed``), the policies'
-    names in the order of the residuals, the number of worlds and the predictors fitted
+    """The estimate of :func:`fit` on the episode ``rows`` (``read_csv`` of a ``benchmark_episodes.csv``) on the
+    worlds every policy played, its 95% interval from ``bootstrap`` resamplings of the worlds (drawn with
+    ``seed``), the policies' names in the order of the residuals, the number of worlds and the predictors fitted
     (:func:`measured_predictors`), in the order of the coefficients."""
     predictors = measured_predictors(rows)
     usable = [row for row in rows if all(_is_number(row.get(key)) for key in (score, *predictors))]
@@ -85,6 +101,7 @@ def attribution(rows: list[dict], score: str, bootstrap: int, seed: int = 0):
         raise ValueError(f"no episode has a number in each of {score}, revisit_share and sim_steps (and "
                          f"{LOOP_ORDER_KEY} on the loop worlds): episode rows of 'emmi-gym benchmark' "
                          "(benchmark_episodes.csv) or of 'emmi-gym evaluate' (episodes.csv) are expected")
+    usable = _on_shared_worlds(usable)
     worlds = np.array([world_of(row) for row in usable])
     policies = np.array([policy_name(row) for row in usable])
     names = sorted(set(policies), key=lambda name: (not name.endswith(" agents"), name))

@@ -23,7 +23,7 @@ import numpy as np
 
 from ...concurrency.parallel import run_in_processes
 from ...formats.atomic_files import write_atomically
-from ...world.map_sets import map_set_files
+from ...world.map_sets import map_set_files, world_name
 from ..experiments.directions import better_side, count_better, format_number
 from ..policies import make_policy
 from .episodes import PolicyActor, play_episode, summarise
@@ -71,7 +71,7 @@ def play_on_world(world, seed: int, policy, settings: ComparisonSettings = Compa
     env = settings.env_on(world)
     core = env.unwrapped
     scores = play_episode(env, make_actor(policy), seed, keep_steps=keep_steps, keep_trace=keep_trace)
-    row = {"world": str(world), "plan": core.world.name, "seed": seed, "policy": policy_name(policy),
+    row = {"world": world_name(world), "plan": core.world.name, "seed": seed, "policy": policy_name(policy),
            "decisions": core.decisions, "return": scores["return"], **{k: scores[k] for k in SCORES if k in scores}}
     for kept in ("steps", TRACE):
         if kept in scores:

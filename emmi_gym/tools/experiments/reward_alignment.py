@@ -150,10 +150,16 @@ def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple
     return results
 
 
+def _first_world(episodes, policy: str) -> str:
+    world, seed = next(key for key, by_policy in episodes.items() if policy in by_policy)
+    return f"{world} #{seed}"
+
+
 def paired_returns(rows: list[dict], variants, time_costs, discounts, against: str) -> list[dict]:
     """For each (variant, time cost, discount), each policy's discounted return minus ``against``'s on the
     episodes (world, seed) both played: ``{"reward", "time_cost", "discount", "policy", "difference", "low",
-    "high", "episodes"}`` (mean and Student-t 95% interval)."""
+    "high", "episodes"}`` (mean and Student-t 95% interval); a ``ValueError`` for a policy that shares no episode
+    with ``against``."""
     episodes = _episodes(rows)
     policies = [p for p in dict.fromkeys(row["policy"] for row in rows) if p != against]
     results = []
@@ -164,6 +170,10 @@ def paired_returns(rows: list[dict], variants, time_costs, discounts, against: s
                 for policy in policies:
                     differences = [returns[key, policy] - returns[key, against] for key, by_policy in episodes.items()
                                    if policy in by_policy and against in by_policy]
+                    if not differences:
+                        raise ValueError(f"{policy} played no episode (world and seed) that {against} played, so "
+                                         f"none pairs them: e.g. {_first_world(episodes, policy)} against "
+                                         f"{_first_world(episodes, against)}")
                     mean, low, high, n = mean_interval(differences)
                     results.append({"reward": variant, "time_cost": time_cost, "discount": discount.label,
                                     "policy": policy, "difference": mean, "low": low, "high": high, "episodes": n})

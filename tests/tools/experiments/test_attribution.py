@@ -68,3 +68,16 @@ def test_without_a_loop_order_the_routes_are_the_revisits_and_the_time():
     assert estimate[2] == pytest.approx(1.0)  # R^2: the revisits and the time explain it all
     np.testing.assert_allclose(estimate[3:], 0.0, atol=1e-9)
     assert "closed the loop first" not in markdown(rows, 50) and "| revisit share |" in markdown(rows, 50)
+
+
+def test_only_the_worlds_every_policy_played_are_fitted_and_none_shared_is_refused():
+    """Evaluations pooled from separate runs: a world one policy lacks compares nothing, and runs on different
+    worlds (another install's paths, other seeds) are an error naming what each played, not residuals of zero."""
+    rows = [{"world": f"plan{row['episode_seed']}", "seed": 7, "policy": row["variant"], "ate": row["ate"],
+             "oracle_accuracy": row["oracle_accuracy"], "revisit_share": row["revisit_share"],
+             "sim_steps": row["sim_steps"]} for row in episodes({"agent": 0.0, "frontier": 0.0})]
+    extra = dict(rows[0], world="plan99")
+    assert attribution([*rows, extra], "ate", 50)[4] == 12
+    elsewhere = [dict(row, seed=8) if row["policy"] == "agent" else row for row in rows]
+    with pytest.raises(ValueError, match="no world and seed was played by every policy.*agent played e.g. plan1000 #8"):
+        attribution(elsewhere, "ate", 50)

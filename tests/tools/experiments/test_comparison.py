@@ -12,14 +12,14 @@ from emmi_gym.tools.experiments.comparison import (
     plot_pair,
 )
 from emmi_gym.tools.experiments.report import read_csv, write_csv
-from emmi_gym.world.map_sets import map_set_files
+from emmi_gym.world.map_sets import map_set_files, world_name
 
 
 def test_policies_are_paired_by_world_and_seed(tmp_path):
     worlds = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
     settings = ComparisonSettings(env_options={"max_decisions": 3})
     rows = compare(worlds, [0], ["frontier", "active_loop_closing"], settings, workers=1, progress=False)
-    assert [(r["world"], r["policy"]) for r in rows] == [(w, p) for w in worlds for p in
+    assert [(r["world"], r["policy"]) for r in rows] == [(world_name(w), p) for w in worlds for p in
                                                          ("frontier", "active_loop_closing")]
     assert all(r["decisions"] == 3 and 0.0 <= r["oracle_accuracy"] <= 1.0 for r in rows)
     differences = paired(rows, "ate", "active_loop_closing", "frontier")
@@ -55,7 +55,7 @@ def test_compare_policies_command_writes_the_paired_table_episodes_and_maps(tmp_
     assert main(["compare-policies", "--worlds", *worlds, "--seeds", "1", "--first-seed", "5", "--options",
                  '{"max_decisions": 2}', "--workers", "1", "--quiet", "--out", str(out)]) == 0
     rows = read_csv(out / "episodes.csv")
-    assert [(r["world"], r["seed"], r["policy"]) for r in rows] == [(w, 5, p) for w in worlds for p in
+    assert [(r["world"], r["seed"], r["policy"]) for r in rows] == [(world_name(w), 5, p) for w in worlds for p in
                                                                   ("frontier", "active_loop_closing")]
     table = (out / "summary.md").read_text()
     assert "2 pairs" in table and table.strip() in capsys.readouterr().out

@@ -67,6 +67,9 @@ def test_returns_paired_with_a_policy_give_the_difference_on_each_episode_and_it
     assert result["difference"] == pytest.approx(1.0 / 3.0)
     half_width = 4.302653 * np.std([0.5, 0.1, 0.4], ddof=1) / np.sqrt(3)   # Student's t, 2 degrees of freedom
     assert (result["low"], result["high"]) == pytest.approx((1 / 3 - half_width, 1 / 3 + half_width), rel=1e-5)
+    with pytest.raises(ValueError, match="stranger played no episode .* that base played"):
+        paired_returns([*rows, episode("z", "stranger", 0.9, 0.2, [step(emmi=1.0)])], ["emmi"], [0.0], [Discount()],
+                       "base")
     table = paired_markdown([result], "base").splitlines()
     assert table[2] == "| policy | episodes | emmi, 0, none |" and table[4].startswith("| agent | 3 | +0.333 [")
 
