@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 
 from ...inputs.validation import MAX_EPISODES
 
@@ -36,6 +37,19 @@ def number(lo: float = 0.0, hi: float | None = None, unit: str = ""):
                                              f"got {text!r}")
         return value
     return parse
+
+
+#: What a label of rows and table columns may be: it names a policy in CSV files and Markdown tables.
+_LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+
+
+def label(text: str) -> str:
+    """An argparse type: a policy's label, 1-64 letters, digits, ``_``, ``-`` or ``.``, starting with a letter or
+    digit (it names rows in CSV files and columns in Markdown tables, where a ``|`` or a blank would break them)."""
+    if not _LABEL.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected 1-64 letters, digits, '_', '-' or '.', starting with a letter or "
+                                         f"digit, got {text!r}")
+    return text
 
 
 #: Seeds of numpy's generators, as the configurations bound them.

@@ -17,8 +17,8 @@ def add_parser(subparsers) -> None:
     ev.add_argument("model", nargs="?", default=None,
                     help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
     ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
-    ev.add_argument("--name", default=None, help="the name the model's rows carry (default: 'agent', or the shipped "
-                                                 "agent's name)")
+    ev.add_argument("--name", type=arguments.label, default=None,
+                    help="the name the model's rows carry (default: 'agent', or the shipped agent's name)")
     ev.add_argument("--episodes", type=arguments.EPISODES, default=10,
                     help="episodes to play (default 10; on a map set, its first maps, one episode each)")
     ev.add_argument("--seed", type=arguments.SEED, default=HELD_OUT_SEED,

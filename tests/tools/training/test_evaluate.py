@@ -77,7 +77,8 @@ def test_evaluate_refuses_unknown_baselines_and_agents(tiny_agent, capsys):
                            ([str(tiny_agent), "--baselines", "frontier", "loop_order_emmi"],
                             "--baselines: loop_order_emmi"),
                            (["--pretrained", "loop_order_emmi", "--baselines", "loop_order_emmi"],
-                            "--baselines: loop_order_emmi is the model evaluated")]:
+                            "--baselines: loop_order_emmi is the model evaluated"),
+                           ([str(tiny_agent), "--name", "emmi | seed 0"], "argument --name: expected 1-64 letters")]:
         with pytest.raises(SystemExit) as stop:
             main(["evaluate", *argv])
         assert stop.value.code == 2 and expected in capsys.readouterr().err
