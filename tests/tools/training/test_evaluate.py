@@ -62,7 +62,7 @@ def test_evaluate_on_a_map_set_plays_its_first_maps(tiny_agent, tmp_path, capsys
     out = tmp_path / "eval"
     assert main(["evaluate", str(tiny_agent), "--name", "tiny", "--world", "dungeon_maps/test", "--episodes", "2",
                  "--baselines", "frontier", "--workers", "1", "--quiet", "--out", str(out)]) == 0
-    plans = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
+    plans = [f"dungeon_maps/test/{p.name}" for p in map_set_files("dungeon_maps/test")[:2]]
     rows = read_rows(out / "episodes.csv")
     assert sorted({r["world"] for r in rows}) == sorted(plans)
     assert {r["policy"] for r in rows} == {"tiny", "frontier"} and "tiny - frontier: 2 pairs" in capsys.readouterr().out
