@@ -41,6 +41,9 @@ def add_parser(subparsers) -> None:
                        help="run each agent's envs in rollout workers, a process per env (the configuration's "
                             "n_envs), instead of in the agent's process: for a machine with more cores than the "
                             "agents trained at once")
+    bench.add_argument("--train-only", action="store_true",
+                       help="train or resume every agent to its budget and evaluate nothing (a sitting of a budget "
+                            "spread over several; run again without it to evaluate every agent and baseline once)")
     arguments.add_ray(bench, "run the agents' training and evaluation as Ray tasks instead of local processes")
     bench.add_argument("--out", default="benchmark_out",
                        help="folder for the agents' run folders, the episodes, summary and figures (default "
@@ -57,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from ...inputs.user_paths import output_folder
     from ..training.config import load_agent_config
     from ..training.reward_benchmark import run_benchmark, write_benchmark
+    from ..training.run_folders import RunFolder
 
     bad = sorted(set(args.rewards) - set(REWARDS))
     if bad:
@@ -72,8 +76,17 @@ def run(args: argparse.Namespace) -> int:
                             baselines, args.out, workers=args.workers, ray_address=ray_address,
                             progress=not args.quiet, init_from=args.init_from,
                             allow_no_training=args.allow_no_training, eval_seed=args.eval_seed,
-                            rollout_workers=args.rollout_workers, report=print)
+                            rollout_workers=args.rollout_workers, train_only=args.train_only, report=print)
     elapsed = time.perf_counter() - started
+    if args.train_only:
+        for result in results:
+            job = result["job"]
+            decisions = RunFolder(job.run_dir).finished_decisions()
+            print(f"{job.variant} seed {job.seed}: {decisions} decisions in {job.run_dir} "
+                  f"({'trained now' if result['trained'] else 'finished by an earlier run'})")
+        print(f"every agent finished in {elapsed / 60:.1f} min; run again without --train-only to evaluate them and "
+              "the baselines")
+        return 0
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
               f"{args.timesteps} training steps per agent"

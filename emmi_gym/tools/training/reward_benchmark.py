@@ -59,7 +59,8 @@ class Job:
     the model ``init_from``, if given, with ``allow_no_training`` as ``train``'s), or play the baseline
     ``policy`` named ``variant`` (kind "baseline": a scripted policy's name, or a
     :class:`~emmi_gym.tools.training.evaluate.TrainedAgent` such as a shipped agent); then evaluate on the
-    held-out episodes, keeping each episode's trace for the comparison at equal robot time."""
+    ``episodes`` held-out episodes (none: trained only), keeping each episode's trace for the comparison at
+    equal robot time."""
 
     kind: str
     variant: str
@@ -90,7 +91,7 @@ def run_job(job: Job) -> dict:
             if result.interrupted:  # its checkpoint is kept for the next run of the benchmark, never evaluated
                 raise KeyboardInterrupt
             model_path = result.model_path
-        rows = evaluate_model(model_path, job.episodes, job.episode_seed, keep_trace=True)
+        rows = evaluate_model(model_path, job.episodes, job.episode_seed, keep_trace=True) if job.episodes else []
         evaluations = folder.ground_truth_path
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
             with open(evaluations) as f:
@@ -135,14 +136,15 @@ def run_state(job: Job) -> str:
 
 def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir,
               init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED,
-              rollout_workers: bool = False) -> list[Job]:
+              rollout_workers: bool = False, train_only: bool = False) -> list[Job]:
     """The agents (one per reward and seed, trained with ``dummy`` vectorisation: the jobs run in
     parallel already; with ``rollout_workers``, each agent's envs in rollout workers instead, one process
     per env, for a machine with more cores than agents; policy lag 0 either way; each from the weights of the
     model ``init_from``, if given, as ``train --init-from``) and one job per baseline (a scripted policy's
     name, or a trained agent: :class:`~emmi_gym.tools.training.evaluate.TrainedAgent`, checked to act in the
     benchmark's evaluation env); every job is evaluated on the ``episodes`` held-out episodes seeded from
-    ``eval_seed``."""
+    ``eval_seed``. With ``train_only``, the agents alone, evaluated on none: a sitting of a budget spread over
+    several, the last of which evaluates every agent and baseline once."""
     from ..policies import POLICY_NAMES
 
     out = Path(out_dir)
@@ -168,8 +170,10 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
             agent = replace(config, env_kwargs=dict(config.env_kwargs, reward=reward), seed=int(seed),
                             total_timesteps=int(timesteps), vec_env="workers" if rollout_workers else "dummy",
                             policy_lag=0)
-            jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}", episodes,
-                            eval_seed, init_from, allow_no_training))
+            jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}",
+                            0 if train_only else episodes, eval_seed, init_from, allow_no_training))
+    if train_only:
+        return jobs
     for name, baseline in zip(names, baselines, strict=True):
         jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, eval_seed, policy=baseline))
     return jobs
@@ -203,15 +207,15 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
 def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
                   workers: int | None = None, ray_address: str | None = None, progress: bool = True,
                   init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED,
-                  rollout_workers: bool = False, report=None) -> list[dict]:
+                  rollout_workers: bool = False, train_only: bool = False, report=None) -> list[dict]:
     """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed.
     ``init_from`` (a model every agent starts from, as ``train``'s) and the run folders (:func:`run_state`)
-    are checked before any job starts; ``rollout_workers``: each agent's envs in rollout workers
-    (:func:`make_jobs`); ``report``: called with a sentence saying where the agents start and how many
-    decisions each will train."""
+    are checked before any job starts; ``rollout_workers``: each agent's envs in rollout workers;
+    ``train_only``: the agents trained, nothing evaluated (:func:`make_jobs`); ``report``: called with a
+    sentence saying where the agents start and how many decisions each will train."""
     init_from = None if init_from is None else Path(init_from)
     jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from, allow_no_training,
-                     eval_seed, rollout_workers)
+                     eval_seed, rollout_workers, train_only)
     agents = [job for job in jobs if job.kind == "agent"]
     if init_from is not None and agents:
         start = RunFolder.check_init_from(init_from, agents[0].config, allow_no_training)

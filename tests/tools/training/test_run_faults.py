@@ -160,6 +160,25 @@ def test_an_interrupted_benchmark_exits_130_and_reports_nothing(tmp_path, monkey
 
 
 @pytest.mark.slow
+def test_a_benchmark_sitting_with_train_only_trains_and_the_last_evaluates_once(tmp_path, capsys):
+    """A budget spread over sittings: --train-only trains (or resumes) the agents and plays no episode, of
+    theirs or of the baselines; the sitting without it evaluates the finished agents without training them."""
+    (tmp_path / "agent.yaml").write_text(yaml.safe_dump(config_dict("PPO", {"max_decisions": 4}, PPO_SMALL,
+                                                                    timesteps=16, env_id="emmi_gym/Explore-v1")))
+    argv = ["benchmark", "--config", tmp_path / "agent.yaml", "--rewards", "emmi", "--seeds", "1", "--episodes",
+            "1", "--baselines", "frontier", "--workers", "1", "--out", tmp_path / "bench", "--quiet"]
+    code, out, _ = cli([*argv, "--train-only"], capsys)
+    assert code == 0 and "emmi seed 0: 16 decisions" in out and "trained now" in out
+    assert "run again without --train-only" in out
+    assert sorted(p.name for p in (tmp_path / "bench" / "runs").iterdir()) == ["emmi_seed0"]
+    assert not (tmp_path / "bench" / "benchmark_episodes.csv").exists()
+    code, out, _ = cli(argv, capsys)
+    assert code == 0 and "1 agent(s) trained by an earlier run" in out
+    rows = (tmp_path / "bench" / "benchmark_episodes.csv").read_text().splitlines()
+    assert len(rows) == 3 and {row.split(",")[-3] for row in rows[1:]} == {"agent", "baseline"}
+
+
+@pytest.mark.slow
 def test_ctrl_c_in_a_pool_stops_every_job_without_a_traceback(tmp_path):
     script = ("import time\nfrom emmi_gym.concurrency.parallel import run_in_processes\n"
               "try:\n    run_in_processes(time.sleep, [60] * 6, workers=2, progress=False)\n"
