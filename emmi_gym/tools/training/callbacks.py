@@ -101,7 +101,10 @@ class GroundTruthEvalMixin(OnRunSchedule):
     loop before entering the new area, ``eval/closed_loop_first`` (episodes that did neither
     left out). SB3's own files (``evaluations.npz`` in ``log_path``, ``best_model.zip`` in
     ``best_model_save_path``) are written into a staging folder, :data:`STAGING`, and renamed into
-    place, so a run killed while SB3 writes one leaves the previous one whole."""
+    place, so a run killed while SB3 writes one leaves the previous one whole.
+
+    A resumed run goes on with the evaluations of the checkpoint it starts from
+    (:meth:`_on_training_start`)."""
 
     def __init__(self, *args, eval_seed: int, ground_truth_csv: Path, log_path=None, best_model_save_path=None,
                  **kwargs):
@@ -113,9 +116,62 @@ class GroundTruthEvalMixin(OnRunSchedule):
         self.eval_seed = eval_seed
         self.ground_truth_csv = Path(ground_truth_csv)
         self._finished: list[dict] = []
+        self._evaluations_file = None if log_path is None else Path(log_path) / "evaluations.npz"
         self._staged = {Path(folder) / STAGING / name: Path(folder) / name
                         for folder, name in ((log_path, "evaluations.npz"), (best_model_save_path, "best_model.zip"))
                         if folder is not None}
+
+    def _on_training_start(self) -> None:
+        """Where a run resumes at ``start`` decisions (its checkpoint's), keep the evaluations made up to
+        ``start`` and drop those of a continuation that was lost (a run killed after an evaluation its
+        newest checkpoint does not hold), in ``eval_ground_truth.csv`` and in SB3's ``evaluations.npz``,
+        whose best mean reward so far is restored (the best model is replaced only by a better one). If
+        ``start`` is on the schedule and its evaluation is missing (a Ctrl-C or SIGTERM cut it short, and
+        the checkpoint was saved at that decision), make it now, with the same weights: a resumed run's
+        learning curve has every point an uninterrupted run's has."""
+        super()._on_training_start()
+        start = int(self.model.num_timesteps)
+        evaluated = self._keep_ground_truth_up_to(start)
+        self._keep_sb3_evaluations_up_to(start)
+        if self.eval_freq > 0 and self.n_calls > 0 and self.n_calls % self.eval_freq == 0 and start not in evaluated:
+            self._on_step()
+
+    def _keep_ground_truth_up_to(self, start: int) -> set[int]:
+        """Drop the rows of ``eval_ground_truth.csv`` made after ``start`` decisions; the decision counts of
+        those kept."""
+        if not self.ground_truth_csv.exists():
+            return set()
+        lines = [row for row in csv.reader(io.StringIO(self.ground_truth_csv.read_text(encoding="utf-8"),
+                                                          newline="")) if row]
+        if not lines:
+            return set()
+        header, rows = lines[0], lines[1:]
+        column = header.index("timesteps")
+        kept = [row for row in rows if float(row[column]) <= start]
+        if len(kept) < len(rows):
+            text = io.StringIO()
+            csv.writer(text).writerows([header, *kept])
+            write_text_atomically(self.ground_truth_csv, text.getvalue())
+        return {int(float(row[column])) for row in kept}
+
+    def _keep_sb3_evaluations_up_to(self, start: int) -> None:
+        """Continue SB3's ``evaluations.npz`` with its evaluations up to ``start`` decisions (SB3 starts its
+        lists empty at each ``learn`` and would overwrite the file with the resumed part's alone), and its
+        best mean reward among them. Evaluations of another number of episodes (the resumed run changed
+        ``eval.episodes``) cannot share the file's arrays: it is kept as ``evaluations_to_<start>.npz``."""
+        if self._evaluations_file is None or not self._evaluations_file.exists():
+            return
+        with np.load(self._evaluations_file) as saved:
+            timesteps, results, lengths = (np.asarray(saved[key]) for key in ("timesteps", "results", "ep_lengths"))
+        if results.ndim != 2 or results.shape[1] != self.n_eval_episodes:
+            os.replace(self._evaluations_file, self._evaluations_file.with_name(f"evaluations_to_{start}.npz"))
+            return
+        keep = timesteps <= start
+        self.evaluations_timesteps = [int(t) for t in timesteps[keep]]
+        self.evaluations_results = [row.tolist() for row in results[keep]]
+        self.evaluations_length = [row.tolist() for row in lengths[keep]]
+        if self.evaluations_results:
+            self.best_mean_reward = max(float(np.mean(row)) for row in self.evaluations_results)
 
     def _log_success_callback(self, locals_, globals_) -> None:
         super()._log_success_callback(locals_, globals_)

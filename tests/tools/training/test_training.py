@@ -134,6 +134,66 @@ def test_a_resumed_run_checkpoints_and_evaluates_on_the_schedule_of_an_uninterru
         assert [int(float(row["timesteps"])) for row in csv.DictReader(f)] == [32, 64, 96]
 
 
+def evaluated_decisions(run) -> tuple[list[int], list[int]]:
+    """The decision counts of a run folder's periodic evaluations: in ``eval_ground_truth.csv`` and in
+    SB3's ``eval/evaluations.npz``."""
+    with open(run / "eval_ground_truth.csv") as f:
+        ground_truth = [int(float(row["timesteps"])) for row in csv.DictReader(f)]
+    return ground_truth, np.load(run / "eval" / "evaluations.npz")["timesteps"].tolist()
+
+
+@pytest.mark.slow
+def test_an_evaluation_cut_short_by_ctrl_c_is_made_when_the_run_resumes(tmp_path, monkeypatch):
+    from emmi_gym.tools.training.callbacks import GroundTruthEvalMixin
+
+    original = GroundTruthEvalMixin._log_success_callback
+
+    def ctrl_c_in_the_second_evaluation(self, locals_, globals_):
+        if self.num_timesteps == 64:
+            raise KeyboardInterrupt
+        return original(self, locals_, globals_)
+
+    monkeypatch.setattr(GroundTruthEvalMixin, "_log_success_callback", ctrl_c_in_the_second_evaluation)
+    config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                            checkpoint_freq=32, eval={"freq": 32, "episodes": 1, "seed": 500}))
+    stopped = train(config, tmp_path, progress=False)
+    assert stopped.interrupted and stopped.timesteps == 64 and evaluated_decisions(tmp_path) == ([32], [32])
+    monkeypatch.setattr(GroundTruthEvalMixin, "_log_success_callback", original)
+    train(config, tmp_path, resume=True, progress=False)
+    assert evaluated_decisions(tmp_path) == ([32, 64, 96], [32, 64, 96]), "the learning curve has no gap at 64"
+
+
+@pytest.mark.slow
+def test_a_run_resumed_from_an_older_checkpoint_drops_the_lost_evaluations_and_keeps_the_best_model(tmp_path):
+    from stable_baselines3 import PPO
+
+    hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
+    evaluations = {"freq": 16, "episodes": 1, "seed": 500}
+    config = parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=64, checkpoint_freq=32, eval=evaluations))
+    train(config, tmp_path, progress=False)
+    assert evaluated_decisions(tmp_path) == ([16, 32, 48, 64], [16, 32, 48, 64])
+    (tmp_path / "model.zip").unlink()  # killed after its evaluation at 48 and before the end
+    (tmp_path / "checkpoints" / "model_64_steps.zip").unlink()
+    longer = parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=96, checkpoint_freq=32, eval=evaluations))
+    train(longer, tmp_path, resume=True, progress=False)
+    assert evaluated_decisions(tmp_path) == ([16, 32, 48, 64, 80, 96], [16, 32, 48, 64, 80, 96])
+    saved = np.load(tmp_path / "eval" / "evaluations.npz")
+    best = int(np.argmax(saved["results"].mean(axis=1)))
+    assert PPO.load(tmp_path / "eval" / "best_model.zip").num_timesteps == saved["timesteps"][best]
+
+
+@pytest.mark.slow
+def test_a_run_resumed_with_more_evaluation_episodes_keeps_the_earlier_evaluations_file(tmp_path):
+    hyper = {"n_steps": 16, "batch_size": 16, "n_epochs": 1}
+    train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=32, eval={"freq": 16, "episodes": 1,
+                                                                                 "seed": 500})), tmp_path,
+          progress=False)
+    more = config_dict("PPO", hyper=hyper, timesteps=64, eval={"freq": 16, "episodes": 2, "seed": 500})
+    train(parse_agent_config(more), tmp_path, resume=True, progress=False)
+    assert evaluated_decisions(tmp_path) == ([16, 32, 48, 64], [48, 64])
+    assert np.load(tmp_path / "eval" / "evaluations_to_32.npz")["timesteps"].tolist() == [16, 32]
+
+
 @pytest.mark.slow
 def test_a_run_extended_and_interrupted_resumes_from_its_newest_checkpoint_not_its_old_model(tmp_path,
                                                                                              monkeypatch):
