@@ -10,8 +10,8 @@ Each run folder's ``eval_ground_truth.csv`` (written by ``emmi-gym train``; ``--
 checkpoint_scores.csv``: the file of ``emmi-gym score-checkpoints``) gives one line per measure
 (and, where every file has it, the share of episodes that closed the loop first);
 runs given the same LABEL (the seeds of one configuration) are drawn as their mean over the
-evaluations they all reached, at the mean of their decision counts (a resumed run's may differ), the
-band spanning them; ``--baselines-csv`` (``episodes.csv`` of
+evaluations they all reached (:func:`common_evaluations`), at the mean of their decision counts (a
+resumed run's may differ), the band spanning them; ``--baselines-csv`` (``episodes.csv`` of
 ``emmi-gym evaluate --out``, or ``benchmark_episodes.csv`` of ``emmi-gym benchmark``) draws each
 scripted policy's mean there as a level line, for scale (its episodes are not the periodic
 evaluation's). Every file is read and checked (:func:`emmi_gym.inputs.csv_files.read_csv_file`: the
@@ -88,6 +88,30 @@ def _check_finite(where, columns: dict[str, np.ndarray]) -> None:
                                "only empty or non-finite cells")
 
 
+def common_evaluations(runs: list[dict]) -> list[list[int]]:
+    """The evaluations that every curve of ``runs`` (the runs of one label) reached, matched by their decision
+    counts: a row per evaluation, the index of its point in each curve, in order. Each point of the first
+    curve is matched with the next unmatched point of every other curve within half the first curve's
+    median interval (a run resumed between rollouts evaluates a little later: 1140 against 1000); a point
+    that some curve lacks (an evaluation cut short, before the runs kept every evaluation) is left out,
+    so that the mean is never taken over different evaluations."""
+    reference = runs[0]["timesteps"]
+    tolerance = float(np.median(np.diff(reference))) / 2 if len(reference) > 1 else math.inf
+    following = [0] * len(runs)
+    rows = []
+    for index, decisions in enumerate(reference):
+        row = [index]
+        for curve, start in zip(runs[1:], following[1:], strict=True):
+            later = np.flatnonzero(curve["timesteps"][start:] >= decisions - tolerance)
+            if not len(later) or curve["timesteps"][start + later[0]] > decisions + tolerance:
+                break
+            row.append(start + int(later[0]))
+        else:
+            rows.append(row)
+            following = [point + 1 for point in row]
+    return rows
+
+
 def figure_path(out) -> Path:
     """The file the figure goes to: ``out``, or ``out.png`` if it names no format (matplotlib would add it);
     a ``ValueError`` for a format matplotlib cannot write, and an
@@ -116,11 +140,11 @@ def draw(groups: dict[str, list[dict]], baselines: dict[str, dict[str, float]], 
                                if all(measure in curve and np.isfinite(curve[measure]).any() for curve in curves)}}
     fig, axes = plt.subplots(1, len(measures), figsize=(4 * len(measures), 3.4))
     for k, (label, runs) in enumerate(groups.items()):
-        length = min(len(curve["timesteps"]) for curve in runs)
+        points = np.array(common_evaluations(runs), dtype=int).reshape(-1, len(runs))
         # runs resumed between rollouts score at their own counts (1140, 2140, ...): the mean run at the mean count
-        steps = np.mean([curve["timesteps"][:length] for curve in runs], axis=0)
+        steps = np.mean([curve["timesteps"][points[:, r]] for r, curve in enumerate(runs)], axis=0)
         for ax, measure in zip(axes, measures, strict=True):
-            values = np.array([curve[measure][:length] for curve in runs])
+            values = np.array([curve[measure][points[:, r]] for r, curve in enumerate(runs)])
             name = label if len(runs) == 1 else f"{label} ({len(runs)} runs)"
             ax.plot(steps, values.mean(axis=0), marker="o", ms=3, color=f"C{k}", label=name)
             if len(runs) > 1:

@@ -113,6 +113,24 @@ def test_learning_curves_draw_runs_of_one_label_at_their_mean_decision_counts(tm
     assert steps == pytest.approx([1070, 2070, 3030]) and accuracy == pytest.approx([0.6, 0.7, 0.8])
 
 
+def test_learning_curves_average_runs_of_one_label_only_over_evaluations_each_made(tmp_path, monkeypatch):
+    import matplotlib.axes
+
+    drawn = []
+    original = matplotlib.axes.Axes.plot
+    monkeypatch.setattr(matplotlib.axes.Axes, "plot",
+                        lambda ax, x, y, *a, **k: drawn.append((list(x), list(y))) or original(ax, x, y, *a, **k))
+    for run, rows in (("a", "2500,0.5,0.2,100,0.4\n5000,0.6,0.2,100,0.4\n7500,0.7,0.2,100,0.4\n"
+                             "10000,0.8,0.2,100,0.4\n"),
+                      ("b", "2500,0.7,0.2,100,0.4\n5000,0.8,0.2,100,0.4\n10000,0.6,0.2,100,0.4\n")):  # lacks 7500
+        (tmp_path / run).mkdir()
+        (tmp_path / run / "eval_ground_truth.csv").write_text(MEASURES + rows)
+    assert emmi_gym(["learning-curves", f"{tmp_path / 'a'}=emmi", f"{tmp_path / 'b'}=emmi",
+                     "--out", str(tmp_path / "c.png")]) == 0
+    steps, accuracy = drawn[0]
+    assert steps == pytest.approx([2500, 5000, 10000]) and accuracy == pytest.approx([0.6, 0.7, 0.7])
+
+
 def test_learning_curves_read_the_loop_order_where_the_files_have_it(tmp_path):
     from emmi_gym.tools.training.learning_curves import read_baselines, read_curve
 
