@@ -76,9 +76,11 @@ def checkpoints_to_compare(run_dir, decisions=None) -> tuple[tuple[int, Path], l
     final = folder.model_path if folder.finished_decisions() is not None else found[-1][1]
     final_decisions = folder.finished_decisions() or found[-1][0]
     earlier = {count: path for count, path in found if path != final}
+    if not earlier:
+        raise ValueError(f"{folder.path}: no checkpoint but the final model ({final}) to compare with it")
     if decisions is None:
         decisions = sorted({min(earlier, key=lambda count: abs(count - fraction * final_decisions))
-                            for fraction in DEFAULT_FRACTIONS} if earlier else set())
+                            for fraction in DEFAULT_FRACTIONS})
     missing = [count for count in decisions if count not in earlier]
     if missing:
         raise ValueError(f"{folder.path}: no whole checkpoint at {missing} decisions; its checkpoints are at "

@@ -38,6 +38,10 @@ def test_a_missing_checkpoint_or_continuous_actions_are_clear_errors(tmp_path):
     missing = r"no whole checkpoint at \[5\] decisions; its checkpoints are at \[4, 8, 12\]"
     with pytest.raises(ValueError, match=missing):
         checkpoints_to_compare(run, [4, 5])
+    for checkpoint in (run / "checkpoints").iterdir():
+        checkpoint.unlink()
+    with pytest.raises(ValueError, match="no checkpoint but the final model"):
+        checkpoints_to_compare(run)
     velocity = waypoint_run(tmp_path / "velocity", env={"id": "emmi_gym/ExploreVelocity-v0", "kwargs": {
         "particles": 3, "generator": {"nx": 2, "ny": 2, "n_loops": 1}, "max_sim_steps": 40}}, algorithm="PPO")
     with pytest.raises(ValueError, match="discrete action, but the model acts in Box"):
