@@ -13,6 +13,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
 from ...formats.atomic_files import write_text_atomically
+from ...inputs.csv_files import read_csv_file
 from ..experiments.episodes import GROUND_TRUTH, nanmean
 from ..experiments.loop_order import LOOP_ORDER_KEY
 
@@ -141,18 +142,16 @@ class GroundTruthEvalMixin(OnRunSchedule):
         those kept."""
         if not self.ground_truth_csv.exists():
             return set()
-        lines = [row for row in csv.reader(io.StringIO(self.ground_truth_csv.read_text(encoding="utf-8"),
-                                                          newline="")) if row]
-        if not lines:
-            return set()
-        header, rows = lines[0], lines[1:]
-        column = header.index("timesteps")
-        kept = [row for row in rows if float(row[column]) <= start]
+        rows = read_csv_file(self.ground_truth_csv, "run's periodic evaluations (eval_ground_truth.csv)",
+                             required=("timesteps",))
+        kept = [row for row in rows if float(row["timesteps"]) <= start]
         if len(kept) < len(rows):
             text = io.StringIO()
-            csv.writer(text).writerows([header, *kept])
+            writer = csv.DictWriter(text, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(kept)
             write_text_atomically(self.ground_truth_csv, text.getvalue())
-        return {int(float(row[column])) for row in kept}
+        return {int(float(row["timesteps"])) for row in kept}
 
     def _keep_sb3_evaluations_up_to(self, start: int) -> None:
         """Continue SB3's ``evaluations.npz`` with its evaluations up to ``start`` decisions (SB3 starts its

@@ -73,8 +73,8 @@ def checkpoints_to_compare(run_dir, decisions=None) -> tuple[tuple[int, Path], l
     :data:`DEFAULT_FRACTIONS` of the final model's decisions."""
     folder = RunFolder(run_dir)
     found = folder.whole_checkpoints()
-    final = folder.model_path if folder.finished_decisions() is not None else found[-1][1]
-    final_decisions = folder.finished_decisions() or found[-1][0]
+    finished = folder.finished_decisions()
+    final_decisions, final = (finished, folder.model_path) if finished is not None else found[-1]
     earlier = {count: path for count, path in found if path != final}
     if not earlier:
         raise ValueError(f"{folder.path}: no checkpoint but the final model ({final}) to compare with it")
