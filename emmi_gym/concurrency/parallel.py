@@ -12,7 +12,7 @@ import time
 from collections.abc import Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, as_completed, wait
 
-from tqdm.auto import tqdm
+from .progress import progress_bar
 
 
 def one_kernel_thread() -> None:
@@ -34,7 +34,7 @@ def run_in_processes(function, jobs: Iterable, *, total: int | None = None, work
     total = len(jobs) if total is None else total
     workers = max(1, min(total, workers or os.cpu_count() or 1))
     results = []
-    with tqdm(total=total, desc=desc, unit="run", disable=not progress) as bar:
+    with progress_bar(total=total, desc=desc, unit="run", disable=not progress) as bar:
         if workers == 1:
             for job in jobs:
                 results.append(function(job))

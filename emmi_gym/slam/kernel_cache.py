@@ -8,21 +8,43 @@ numba's user-wide cache (``~/.cache/numba``). Later runs load them in about a se
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from . import _kernels
 
 
-def kernel_cache_folder() -> Path:
-    """The folder numba caches the filter's kernels in (:mod:`emmi_gym.slam._kernels`), found as numba finds it."""
+def cache_folder(function) -> Path:
+    """The folder numba caches the kernel ``function`` (a plain Python function) in, found as numba finds it."""
     from numba.core import caching
 
-    source = _kernels.__file__
+    source = inspect.getfile(function)
     for locator in (caching.UserProvidedCacheLocator, caching.InTreeCacheLocator, caching.UserWideCacheLocator):
-        found = locator.from_function(_kernels.insert_scans.py_func, source)
+        found = locator.from_function(function, source)
         if found is not None:
             return Path(found.get_cache_path())
     return Path(source).parent / "__pycache__"
+
+
+def kernel_cache_folder() -> Path:
+    """The folder numba caches the filter's kernels in (:mod:`emmi_gym.slam._kernels`)."""
+    return cache_folder(_kernels.insert_scans.py_func)
+
+
+def cached_kernels(modules) -> tuple[int, int]:
+    """(cached, all) of the numba kernels in ``modules`` (the project compiles every kernel with ``cache=True``;
+    those inlined into others, ``inline="always"``, are no kernels of their own): how many of them have an index
+    file in numba's cache (compiled by this or any other process, worker processes included)."""
+    from numba.core.dispatcher import Dispatcher
+
+    kernels = {id(value): value for module in modules for value in vars(module).values()
+               if isinstance(value, Dispatcher) and value.targetoptions.get("inline") != "always"}
+    cached = 0
+    for kernel in kernels.values():
+        function = kernel.py_func
+        stem = Path(inspect.getfile(function)).stem
+        cached += any(cache_folder(function).glob(f"{stem}.{function.__qualname__}-*.nbi"))
+    return cached, len(kernels)
 
 
 def kernels_compiled() -> bool:

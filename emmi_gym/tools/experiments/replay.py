@@ -147,9 +147,9 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
     truth_at = true_pose_at(log)
     stream = laser_stream(log)
     if progress:
-        from tqdm import tqdm
+        from ...concurrency.progress import progress_bar
 
-        stream = tqdm(stream, total=len(lasers), unit="scan", desc="replay")
+        stream = progress_bar(stream, total=len(lasers), unit="scan", desc="replay")
     for position, pose, record in stream:
         if pose is None:
             missing += 1

@@ -1,5 +1,6 @@
 """Callbacks of training: periodic evaluation on held-out seeds that also logs the ground-truth metrics,
-and the check that stops training at the first non-finite number."""
+the check that stops training at the first non-finite number, and the decisions trained so far as a
+progress bar (a line at least every 30 s in a log)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
+from ...concurrency.progress import progress_bar
 from ...formats.atomic_files import write_text_atomically
 from ...inputs.csv_files import read_csv_file
 from ..experiments.episodes import GROUND_TRUTH, nanmean
@@ -39,6 +41,35 @@ def first_non_finite(module) -> str | None:
                     return f"the {what} {name!r} holds {int((~finite).sum())} NaN or infinite values (of " \
                            f"{tensor.numel()})"
     return None
+
+
+class DecisionProgress(BaseCallback):
+    """The decisions trained, as SB3's ``ProgressBarCallback`` counts them (each step of the vectorised envs
+    is one decision per env), on :func:`~emmi_gym.concurrency.progress.progress_bar`: tqdm's bar on a
+    terminal, and written to a file or a pipe a line at least every 30 s, through the PPO updates and
+    numba's first compile too (SB3's rich bar writes nothing off a terminal until training ends).
+    ``close()`` ends the bar wherever training stopped."""
+
+    def __init__(self, decisions: int, first: int = 0):
+        super().__init__()
+        self.decisions, self.first = decisions, first
+        self.bar = None
+
+    def _on_training_start(self) -> None:
+        self.bar = progress_bar(total=self.first + self.decisions, initial=self.first, desc="training",
+                                unit="decision")
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.training_env.num_envs)
+        return True
+
+    def _on_training_end(self) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 class StopOnNonFinite(BaseCallback):

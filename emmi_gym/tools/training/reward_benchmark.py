@@ -20,10 +20,10 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from ...concurrency.interrupts import Interrupted
 from ...concurrency.parallel import run_in_processes
+from ...concurrency.progress import progress_bar
 from ...concurrency.ray_cluster import connect_ray
 from ...formats.atomic_files import write_atomically, write_text_atomically
 from ..experiments.comparison import make_actor, policy_name
@@ -193,7 +193,7 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
         remote = ray.remote(num_cpus=1)(run_job)
         pending = [remote.remote(job) for job in jobs]
         results = []
-        with tqdm(total=len(jobs), desc="benchmark runs (Ray)", unit="run", disable=not progress) as bar:
+        with progress_bar(total=len(jobs), desc="benchmark runs (Ray)", unit="run", disable=not progress) as bar:
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)
                 results.extend(ray.get(done))

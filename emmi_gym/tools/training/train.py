@@ -1,4 +1,4 @@
-"""Training an agent from its configuration: vectorised envs, TensorBoard, SB3's progress bar,
+"""Training an agent from its configuration: vectorised envs, TensorBoard, a progress bar,
 periodic held-out evaluation with the ground-truth metrics, checkpoints, resuming, Ctrl-C safety.
 
 The run folder, its files and what a run checks before it writes anything (a folder in use, a resumed
@@ -32,7 +32,14 @@ from ...concurrency.interrupts import RunStopped
 from ...concurrency.parallel import ActorFailed, leave_terminal_signals, one_kernel_thread
 from ...formats.atomic_files import write_atomically
 from ..experiments.loop_order import LoopOrderInfo
-from .callbacks import NonFiniteError, OnRunSchedule, StopOnNonFinite, check_weights, eval_callback_class
+from .callbacks import (
+    DecisionProgress,
+    NonFiniteError,
+    OnRunSchedule,
+    StopOnNonFinite,
+    check_weights,
+    eval_callback_class,
+)
 from .config import AgentConfig, algorithm_class, policy_argument, rollout_workers, sb3_policy_kwargs
 from .run_folders import RunFolder, RunStart
 from .run_folders.model_files import load_model_file
@@ -346,6 +353,9 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
     if config.discount_unit is not None:
         callbacks.append(SemiMarkovDiscounts(config.discount_unit))
     remaining = max(config.total_timesteps - first, 0)
+    shown = DecisionProgress(remaining, first) if progress else None
+    if shown is not None:
+        callbacks.append(shown)
     interrupted = False
     interrupts: list[bool] = []
     with unraisable_interrupts_quiet(interrupts):
@@ -355,7 +365,7 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
                 # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
                 warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
                 model.learn(remaining, callback=CallbackList([StopOnInterrupt(interrupts), *callbacks]),
-                            progress_bar=progress, reset_num_timesteps=start.model is None, tb_log_name="run")
+                            reset_num_timesteps=start.model is None, tb_log_name="run")
             check_weights(model, "at the end")
             with interrupts_deferred():
                 model_path = write_atomically(folder.model_path, partial(_save, model, record))
@@ -371,6 +381,8 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
             raise NonFiniteError(f"{folder.path}: {exc}. Nothing of it was saved; the newest checkpoint, of finite "
                                  f"weights, is {newest if newest is not None else 'none yet'}") from None
         finally:
+            if shown is not None:
+                shown.close()
             close_vec_env(env)
             if eval_env is not None:
                 close_vec_env(eval_env)

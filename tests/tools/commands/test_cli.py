@@ -83,3 +83,24 @@ def test_a_first_run_says_that_numba_compiles_and_where_it_caches(tmp_path, monk
     kernel_cache_folder().mkdir(parents=True, exist_ok=True)
     (kernel_cache_folder() / "_kernels.insert_scans-141.py311.nbi").write_bytes(b"")
     assert kernels_compiled() and first_run_note() is None
+
+
+def test_a_first_compile_says_how_many_kernels_are_compiled_until_the_count_stops(capsys):
+    import sys
+    import time
+
+    import emmi_gym.env  # noqa: F401  (the modules holding the kernels)
+    from emmi_gym.slam.kernel_cache import cached_kernels
+    from emmi_gym.tools.commands.dispatch import compile_progress
+
+    with compile_progress(True, interval=0.1):
+        time.sleep(0.6)
+    lines = capsys.readouterr().err.splitlines()
+    cached, total = cached_kernels([module for name, module in sys.modules.items() if name.startswith("emmi_gym.")])
+    assert total >= 10 and 0 <= cached <= total
+    assert lines and all(line.startswith("numba: ") and " kernels compiled and cached, 0:00 in" in line
+                         for line in lines)
+    assert len(lines) <= 3  # the count stopped growing (everything is cached here): the heartbeat ends
+    with compile_progress(False, interval=0.1):
+        time.sleep(0.3)
+    assert capsys.readouterr().err == ""

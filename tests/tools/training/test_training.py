@@ -104,6 +104,16 @@ def test_eval_freq_zero_trains_with_checkpoints_and_no_periodic_evaluation(tmp_p
 
 
 @pytest.mark.slow
+def test_training_into_a_log_writes_progress_lines(tmp_path, capsys):
+    config = dict(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}, timesteps=48),
+                  eval={"freq": 0, "episodes": 1, "seed": 500})
+    train(parse_agent_config(config), tmp_path, progress=True)
+    err = capsys.readouterr().err  # not a terminal: whole lines, the first at the start, the last at the end
+    lines = [line for line in err.splitlines() if line.startswith("training:")]
+    assert "\r" not in err and lines[0].startswith("training:   0%") and "48/48 [" in lines[-1]
+
+
+@pytest.mark.slow
 def test_ctrl_c_saves_a_checkpoint_that_resume_continues(tmp_path, monkeypatch):
     run_on = interrupt_training_at(monkeypatch, 40)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
