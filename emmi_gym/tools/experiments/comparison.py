@@ -173,7 +173,8 @@ def markdown_table(rows: list[dict], policy: str, baseline: str, title: str) -> 
     left out)."""
     pairs = len(paired(rows, "coverage", policy, baseline))
     lines = [f"{title}: {pairs} pairs (world, seed); mean [95% interval]; differences paired; '{policy} better': "
-             f"on how many pairs {policy}'s score was on the better side of {baseline}'s ('-': no better side).", "",
+             f"on how many pairs {policy}'s score was on the better side of {baseline}'s, ties (equal scores) counted "
+             "apart ('-': no better side).", "",
              f"| score | better | {baseline} | {policy} | {policy} - {baseline} | {policy} better |",
              "| --- | --- | --- | --- | --- | --- |"]
     for column, label in SCORES.items():
@@ -185,7 +186,7 @@ def markdown_table(rows: list[dict], policy: str, baseline: str, title: str) -> 
             cells.append(f"{format_number(m, column)} [{format_number(lo, column)}, {format_number(hi, column)}]")
         diff = paired(rows, column, policy, baseline)
         better = count_better(diff, column)
-        count = "-" if better is None else f"{better}/{np.isfinite(diff).sum()}"
+        count = "-" if better is None else str(better)
         lines.append(f"| {label} | {better_side(column)} | {cells[0]} | {cells[1]} | "
                      f"{difference_cell(diff, column)} | {count} |")
     return "\n".join(lines)

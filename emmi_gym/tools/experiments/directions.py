@@ -10,6 +10,8 @@ did (decisions, robot time, revisits, resamplings) and descriptive shares have n
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 HIGHER, LOWER = 1, -1
@@ -33,14 +35,33 @@ def better_side(column: str) -> str:
     return {HIGHER: "higher", LOWER: "lower"}.get(BETTER.get(column), "-")
 
 
-def count_better(differences, column: str) -> int | None:
-    """How many of the paired ``differences`` (first minus second) favour the first, on ``column``'s better
-    side; ``None`` where the measure has none."""
+@dataclass(frozen=True)
+class Tally:
+    """How paired differences (first minus second) fall on a measure's better side: on how many the first did
+    better, on how many the two were level (a difference of exactly zero), on how many it did worse."""
+
+    better: int
+    tied: int
+    worse: int
+
+    @property
+    def pairs(self) -> int:
+        return self.better + self.tied + self.worse
+
+    def __str__(self) -> str:
+        """``"2/3"``, or ``"1/3 (2 tied)"`` where some were level: a tie never reads as a loss."""
+        return f"{self.better}/{self.pairs}" + (f" ({self.tied} tied)" if self.tied else "")
+
+
+def count_better(differences, column: str) -> Tally | None:
+    """How the finite paired ``differences`` (first minus second) favour the first on ``column``'s better side
+    (:class:`Tally`); ``None`` where the measure has none."""
     side = BETTER.get(column)
     if side is None:
         return None
     values = np.asarray(differences, dtype=float)
-    return int(np.sum(side * values[np.isfinite(values)] > 0))
+    signed = side * values[np.isfinite(values)]
+    return Tally(int(np.sum(signed > 0)), int(np.sum(signed == 0)), int(np.sum(signed < 0)))
 
 
 def digits(column: str) -> int:

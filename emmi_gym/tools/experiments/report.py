@@ -88,8 +88,8 @@ def paired_differences(rows: list[dict], column: str) -> np.ndarray:
 
 def summary_table(rows: list[dict]) -> dict[str, dict[str, tuple]]:
     """Per column: the mean interval under A, under B, and of the paired difference A - B
-    (with, for the difference, on how many seeds A did better: ``None`` where the measure has no better side,
-    see :mod:`emmi_gym.tools.experiments.directions`)."""
+    (with, for the difference, how the seeds fall on the better side: a
+    :class:`~emmi_gym.tools.experiments.directions.Tally`, ``None`` where the measure has no better side)."""
     table = {}
     for column in SUMMARY_COLUMNS:
         entry = {arm: measure_interval([r[column] for r in rows if r["arm"] == arm], column) for arm in POLICIES}
@@ -98,6 +98,21 @@ def summary_table(rows: list[dict]) -> dict[str, dict[str, tuple]]:
         entry["A - B"] = difference_interval(finite, column) + (count_better(finite, column),)
         table[column] = entry
     return table
+
+
+def emmi_headline(table: dict[str, dict[str, tuple]]) -> str:
+    """The experiment's answer in one line (from :func:`summary_table`): the paired mean of A - B of the EMMI
+    change after the decision (eq. 9 read over the same updates) and its 95% interval first, then the words
+    that interval supports, then how the seeds fall (ties apart) and each arm's mean."""
+    entry = table["emmi_change"]
+    mean, low, high, n, tally = entry["A - B"]
+    if n == 0:
+        return "EMMI change after the decision: no seed has both runs with a value"
+    verdict = ("higher under A (A closed the loop: more certain)" if low > 0 else "higher under B" if high < 0
+               else "not told apart by these seeds (the interval holds 0)")
+    return (f"EMMI change after the decision, A - B: {mean:+.3f} [{low:+.3f}, {high:+.3f}] bits/cell (95%, {n} "
+            f"seeds): {verdict}; A higher on {tally.better}, B on {tally.worse}, tied on {tally.tied} "
+            f"(A {entry['A'][0]:+.3f}, B {entry['B'][0]:+.3f})")
 
 
 #: Rows measured where each arm first gets back to the loop's start, which the A/B page's options section
@@ -126,13 +141,13 @@ def markdown_summary(rows: list[dict], settings_text: str) -> str:
              "Changes are read the same number of RBPF updates after the decision for A and B: "
              "the updates A needed to close the loop (the paper's Fig. 6 compares the two step by step).",
              "'better': which side of the measure is better; 'A better': on how many seeds A's value was on that "
-             "side of B's ('-': the measure has no better side).",
+             "side of B's, ties (equal values) counted apart ('-': the measure has no better side).",
              "", "| measure | better | A | B | A - B (paired) | A better |", "| --- | --- | --- | --- | --- | --- |"]
     for column, label in SUMMARY_COLUMNS.items():
         entry = table[column]
         change = column.endswith("_change")
         diff = entry["A - B"]
-        count = "n/a" if not diff[3] else "-" if diff[4] is None else f"{diff[4]}/{diff[3]}"
+        count = "n/a" if not diff[3] else "-" if diff[4] is None else str(diff[4])
         shown = f"{label} (*)" if column in EXPLAINED else label
         lines.append(f"| {shown} | {better_side(column)} | {_cell(entry['A'], column, change)} | "
                      f"{_cell(entry['B'], column, change)} | {_cell(diff, column, True)} | {count} |")

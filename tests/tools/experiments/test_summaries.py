@@ -53,7 +53,7 @@ def test_the_comparison_counts_the_policy_better_on_each_side():
     assert "| score | better | frontier | agent | agent - frontier | agent better |" in table
     assert _row_cells(table, "ATE (m)")[1] == "lower" and _row_cells(table, "ATE (m)")[-1] == "2/3"
     assert _row_cells(table, "accuracy against the oracle map")[-1] == "3/3"
-    assert _row_cells(table, "coverage")[-1] == "0/3"  # ties are not better
+    assert _row_cells(table, "coverage")[-1] == "0/3 (3 tied)"  # ties are neither better nor worse
     steps = _row_cells(table, "simulator steps")
     assert steps[1] == "-" and steps[-1] == "-" and steps[2].startswith("969 [") and steps[4].startswith("+149 [")
 
