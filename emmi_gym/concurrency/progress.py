@@ -64,11 +64,11 @@ class Heartbeat(threading.Thread):
 
 
 class LineTqdm(std.tqdm):
-    """A tqdm bar writing whole lines, at most every ``LINE_INTERVAL`` seconds apart and at least that often
-    (its heartbeat redraws it when nothing was written for that long), for output that is not a terminal."""
+    """A tqdm bar writing whole lines, for output that is not a terminal: one when it starts, one every
+    ``interval`` seconds (its heartbeat redraws it, whether or not it advanced) and one when it closes."""
 
     def __init__(self, *args, file=None, interval: float = LINE_INTERVAL, **kwargs):
-        kwargs.setdefault("mininterval", interval)
+        kwargs["mininterval"] = 1e9  # tqdm's own redraws off: the heartbeat writes one line per interval
         kwargs.setdefault("ascii", True)
         kwargs.setdefault("dynamic_ncols", False)
         kwargs.setdefault("ncols", 100)
