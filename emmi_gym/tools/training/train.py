@@ -45,6 +45,7 @@ from .run_folders import RunFolder, RunStart
 from .run_folders.model_files import load_model_file
 from .run_folders.training_record import earlier_parts
 from .semi_markov import SemiMarkovDiscounts, rollout_buffer_class
+from .update_boundaries import UpdateBoundaries
 
 OFF_POLICY = ("DQN", "SAC")
 
@@ -153,9 +154,11 @@ def interrupts_deferred():
 
 
 @contextmanager
-def interrupts_remembered(received: list):
+def interrupts_remembered(received: list, hold=None):
     """Within the block a Ctrl-C (SIGINT) raises KeyboardInterrupt as usual and is also remembered:
-    ``received`` holds True once one arrived.
+    ``received`` holds True once one arrived; while ``hold()`` is true (an on-policy update under way,
+    :class:`~emmi_gym.tools.training.update_boundaries.UpdateBoundaries`) it is only remembered, and
+    :class:`StopOnInterrupt` raises it at the next decision.
 
     Python code called back from C can drop the exception: numba loads and compiles its
     kernels through llvmlite, whose ctypes callbacks discard what they raise (and print it
@@ -173,9 +176,12 @@ def interrupts_remembered(received: list):
         return
     stepping = []
 
+    def held() -> bool:
+        return hold is not None and hold()
+
     def remember(signum, frame):
         received.append(True)
-        if not stepping:
+        if not stepping and not held():
             raise KeyboardInterrupt
 
     def step_starts(optimizer, args, kwargs):
@@ -183,7 +189,7 @@ def interrupts_remembered(received: list):
 
     def step_ends(optimizer, args, kwargs):
         stepping.clear()
-        if received:
+        if received and not held():
             raise KeyboardInterrupt
 
     hooks = [register_optimizer_step_pre_hook(step_starts), register_optimizer_step_post_hook(step_ends)]
@@ -239,21 +245,41 @@ class AtomicCheckpointCallback(OnRunSchedule, CheckpointCallback):
     """SB3's checkpoints (same names; the schedule counted from the run's start, :class:`OnRunSchedule`),
     each written to a temporary file and renamed, only of finite weights; ``on_save(decisions)`` is called
     once a checkpoint is written, before it is renamed into place (the run's record then never lags behind
-    its newest checkpoint)."""
+    its newest checkpoint). With ``at_updates`` (on-policy algorithms), a checkpoint that falls due inside a
+    rollout is saved at the next update boundary, after the update (the next rollout's start, or the end
+    of training), and named by the decisions counted there: it holds the weights of its own decision count,
+    and resumed, it loses no update (:mod:`~emmi_gym.tools.training.update_boundaries`)."""
 
-    def __init__(self, *args, on_save=None, **kwargs):
+    def __init__(self, *args, on_save=None, at_updates: bool = False, **kwargs):
         super().__init__(*args, **kwargs)
         self.on_save = on_save
+        self.at_updates = at_updates
+        self.due = False
 
     def _on_step(self) -> bool:
         if self.n_calls % self.save_freq == 0:
-            check_weights(self.model, "before a checkpoint")
-            with interrupts_deferred():
-                if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
-                    write_atomically(Path(self._checkpoint_path("replay_buffer_", extension="pkl")),
-                                     self.model.save_replay_buffer)
-                write_atomically(Path(self._checkpoint_path(extension="zip")), self._save)
+            if self.at_updates:
+                self.due = True
+            else:
+                self._save_checkpoint()
         return True
+
+    def _on_rollout_start(self) -> None:
+        if self.due:
+            self._save_checkpoint()
+
+    def _on_training_end(self) -> None:
+        if self.due:
+            self._save_checkpoint()
+
+    def _save_checkpoint(self) -> None:
+        self.due = False
+        check_weights(self.model, "before a checkpoint")
+        with interrupts_deferred():
+            if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
+                write_atomically(Path(self._checkpoint_path("replay_buffer_", extension="pkl")),
+                                 self.model.save_replay_buffer)
+            write_atomically(Path(self._checkpoint_path(extension="zip")), self._save)
 
     def _save(self, path: Path) -> None:
         self.model.save(path)
@@ -340,10 +366,12 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
     if start.model is not None and start.model == start.init_from and not earlier:  # names its start from now on
         folder.write_record([], first, first, None, start.init_from, start.init_decisions)
     per_env = max(1, config.n_envs)
+    on_policy = config.algorithm not in OFF_POLICY
+    boundaries = UpdateBoundaries() if on_policy else None
     checkpointing = AtomicCheckpointCallback(max(config.checkpoint_freq // per_env, 1), str(folder.checkpoint_dir),
-                                             name_prefix="model", save_replay_buffer=config.algorithm in OFF_POLICY,
-                                             on_save=record, run_origin=start.init_decisions)
-    callbacks = [StopOnNonFinite(), checkpointing]
+                                             name_prefix="model", save_replay_buffer=not on_policy, on_save=record,
+                                             run_origin=start.init_decisions, at_updates=on_policy)
+    callbacks = [StopOnNonFinite(), checkpointing] + ([boundaries] if on_policy else [])
     if eval_env is not None:
         callbacks.append(eval_callback_class(config.algorithm)(
             eval_env, eval_freq=max(config.eval.freq // per_env, 1), n_eval_episodes=config.eval.episodes,
@@ -360,7 +388,8 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
     interrupts: list[bool] = []
     with unraisable_interrupts_quiet(interrupts):
         try:
-            with warnings.catch_warnings(), interrupts_remembered(interrupts):
+            hold = None if boundaries is None else lambda: boundaries.updating
+            with warnings.catch_warnings(), interrupts_remembered(interrupts, hold):
                 # the held-out evaluation runs in this process (a DummyVecEnv) while training may use
                 # subprocesses: intended, and the same env either way, so SB3's type warning says nothing
                 warnings.filterwarnings("ignore", message="Training and eval env are not of the same type")
@@ -371,9 +400,9 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
                 model_path = write_atomically(folder.model_path, partial(_save, model, record))
         except KeyboardInterrupt:  # Ctrl-C, kill -INT or SIGTERM: keep what was learnt, as a checkpoint to resume
             interrupted = True
-            model_path = _save_checkpoint(model, config, folder, record, "at the interruption")
+            model_path = _save_checkpoint(model, config, folder, record, "at the interruption", boundaries)
         except ActorFailed as exc:  # a worker died or made no progress: keep what was learnt, say how to go on
-            saved = _save_checkpoint(model, config, folder, record, "when a worker failed")
+            saved = _save_checkpoint(model, config, folder, record, "when a worker failed", boundaries)
             raise RunStopped(f"{exc}. The run stopped and saved {saved}; continue it with: emmi-gym train "
                              f"{config.source} --resume --out {folder.path}") from None
         except NonFiniteError as exc:
@@ -389,13 +418,18 @@ def train(config: AgentConfig, run_dir, *, resume: bool = False, overwrite: bool
     return TrainResult(folder.path, model_path, int(model.num_timesteps), time.perf_counter() - started, interrupted)
 
 
-def _save_checkpoint(model, config: AgentConfig, folder: RunFolder, record, when: str) -> Path:
+def _save_checkpoint(model, config: AgentConfig, folder: RunFolder, record, when: str,
+                     boundaries: UpdateBoundaries | None = None) -> Path:
     """Save ``model`` as a checkpoint of the run in ``folder`` (with its replay buffer, off-policy) that ``--resume``
     continues from, once its weights are checked finite (``when`` says when, for the error), and record the run; a
-    second Ctrl-C must not cut the save short. Its path."""
+    second Ctrl-C must not cut the save short. Its path. On-policy (``boundaries``), the model is saved under the
+    decisions of its last update, which its weights are: the decisions collected since, which no update used, are
+    played again when the run resumes, so no update is lost."""
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if _handles_ctrl_c() else None
     try:
         check_weights(model, when)
+        if boundaries is not None and boundaries.resumable_decisions() is not None:
+            model.num_timesteps = boundaries.resumable_decisions()
         checkpoint = folder.checkpoint_path(int(model.num_timesteps))
         checkpoint.parent.mkdir(parents=True, exist_ok=True)
         if config.algorithm in OFF_POLICY:

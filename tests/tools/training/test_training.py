@@ -144,6 +144,38 @@ def test_a_resumed_run_checkpoints_and_evaluates_on_the_schedule_of_an_uninterru
         assert [int(float(row["timesteps"])) for row in csv.DictReader(f)] == [32, 64, 96]
 
 
+def updates_in(model_file) -> int:
+    """The PPO updates (gradient epochs) a saved model has made, as SB3 keeps them in its data."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    return int(load_from_zip_file(model_file, load_data=True)[0]["_n_updates"])
+
+
+@pytest.mark.slow
+def test_a_ppo_run_stopped_three_times_loses_no_update(tmp_path, monkeypatch):
+    """Stopped inside a rollout (at 20, 52 and 70 decisions, rollouts of 16), each time saved under its last
+    update's count and resumed: the updates, checkpoints and evaluations of the run never stopped."""
+    config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                            checkpoint_freq=32, eval={"freq": 32, "episodes": 1, "seed": 500}))
+    whole = tmp_path / "whole"
+    train(config, whole, progress=False)
+    stopped = tmp_path / "stopped"
+    for at in (20, 52, 70):
+        run_on = interrupt_training_at(monkeypatch, at)
+        result = train(config, stopped, resume=stopped.exists(), progress=False)
+        assert result.interrupted and result.timesteps == at // 16 * 16  # the last update's count
+        assert updates_in(result.model_path) == at // 16
+        run_on()
+    train(config, stopped, resume=True, progress=False)
+    for run in (whole, stopped):
+        assert updates_in(run / "model.zip") == 6
+        checkpoints = dict(RunFolder(run).checkpoints())
+        assert set(checkpoints) >= {32, 64, 96}
+        assert {decisions: updates_in(path) for decisions, path in checkpoints.items()} == \
+            {decisions: decisions // 16 for decisions in checkpoints}  # each holds the weights of its count
+    assert evaluated_decisions(stopped) == evaluated_decisions(whole) == ([32, 64, 96], [32, 64, 96])
+
+
 def evaluated_decisions(run) -> tuple[list[int], list[int]]:
     """The decision counts of a run folder's periodic evaluations: in ``eval_ground_truth.csv`` and in
     SB3's ``eval/evaluations.npz``."""
@@ -167,7 +199,9 @@ def test_an_evaluation_cut_short_by_ctrl_c_is_made_when_the_run_resumes(tmp_path
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
                                             checkpoint_freq=32, eval={"freq": 32, "episodes": 1, "seed": 500}))
     stopped = train(config, tmp_path, progress=False)
-    assert stopped.interrupted and stopped.timesteps == 64 and evaluated_decisions(tmp_path) == ([32], [32])
+    # the evaluation at 64 runs at the rollout's last decision, before the update that uses it: the run is
+    # saved under that last update's count, 48, and plays the rollout again when it resumes
+    assert stopped.interrupted and stopped.timesteps == 48 and evaluated_decisions(tmp_path) == ([32], [32])
     monkeypatch.setattr(GroundTruthEvalMixin, "_log_success_callback", original)
     train(config, tmp_path, resume=True, progress=False)
     assert evaluated_decisions(tmp_path) == ([32, 64, 96], [32, 64, 96]), "the learning curve has no gap at 64"
@@ -212,20 +246,20 @@ def test_a_run_extended_and_interrupted_resumes_from_its_newest_checkpoint_not_i
           progress=False)
     assert RunFolder(tmp_path).latest_checkpoint() == tmp_path / "model.zip"  # finished: its model, tied with model_32
     extended = parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=96, checkpoint_freq=16))
-    run_on = interrupt_training_at(monkeypatch, 56)
+    run_on = interrupt_training_at(monkeypatch, 72)  # inside the rollout from 64: saved under 64
     assert train(extended, tmp_path, resume=True, progress=False).interrupted
-    assert RunFolder(tmp_path).latest_checkpoint() == tmp_path / "checkpoints" / "model_56_steps.zip"
-    newest = (tmp_path / "checkpoints" / "model_56_steps.zip").read_bytes()
-    (tmp_path / "checkpoints" / "model_56_steps.zip").write_bytes(newest[:100])  # cut short by a kill
+    assert RunFolder(tmp_path).latest_checkpoint() == tmp_path / "checkpoints" / "model_64_steps.zip"
+    newest = (tmp_path / "checkpoints" / "model_64_steps.zip").read_bytes()
+    (tmp_path / "checkpoints" / "model_64_steps.zip").write_bytes(newest[:100])  # cut short by a kill
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
         scored = [(decisions, path.name) for decisions, path in RunFolder(tmp_path).whole_checkpoints()]
     assert scored[-1] == (48, "model_48_steps.zip"), "the old model.zip (32 decisions) does not end the curve"
-    (tmp_path / "checkpoints" / "model_56_steps.zip").write_bytes(newest)
+    (tmp_path / "checkpoints" / "model_64_steps.zip").write_bytes(newest)
     run_on()
     end = train(extended, tmp_path, resume=True, progress=False).timesteps
-    assert end >= 96  # from 56, in whole rollouts of 16
+    assert end >= 96  # from 64, in whole rollouts of 16
     record = yaml.safe_load((tmp_path / "training.yaml").read_text())
-    assert [(part["start"], part["end"]) for part in record["parts"]] == [(0, 32), (32, 56), (56, end)]
+    assert [(part["start"], part["end"]) for part in record["parts"]] == [(0, 32), (32, 64), (64, end)]
 
 
 @pytest.mark.slow
@@ -281,6 +315,31 @@ def sigint_as_in_a_terminal():
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.slow
+def test_a_ctrl_c_inside_a_ppo_update_lets_the_update_finish(tmp_path, monkeypatch, sigint_as_in_a_terminal):
+    """A Ctrl-C that arrives while PPO updates (between two rollouts) is held until the update ends: the run
+    stops at the next decision with a checkpoint of the updated weights, under the update's count."""
+    import os
+    import signal
+
+    from stable_baselines3 import PPO
+
+    original, calls = PPO.train, []
+
+    def ctrl_c_in_the_second_update(self):
+        calls.append(True)
+        if len(calls) == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+        original(self)
+
+    monkeypatch.setattr(PPO, "train", ctrl_c_in_the_second_update)
+    config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1},
+                                            eval={"freq": 0, "episodes": 1, "seed": 500}))
+    result = train(config, tmp_path, progress=False)
+    assert result.interrupted and len(calls) == 2 and result.timesteps == 32
+    assert updates_in(result.model_path) == 2
 
 
 def test_a_ctrl_c_inside_an_optimiser_step_is_raised_once_the_step_ends(sigint_as_in_a_terminal):
@@ -347,7 +406,8 @@ def test_a_ctrl_c_whose_exception_is_dropped_still_stops_training(tmp_path, monk
     monkeypatch.setattr(AtomicCheckpointCallback, "_on_step", ctrl_c_inside_a_c_callback)
     config = parse_agent_config(config_dict("PPO", hyper={"n_steps": 16, "batch_size": 16, "n_epochs": 1}))
     stopped = train(config, tmp_path, progress=False)
-    assert stopped.interrupted and stopped.timesteps == 41
+    # stopped at the next decision, 41, and saved under its last update's count (rollouts of 16)
+    assert stopped.interrupted and stopped.timesteps == 32
     assert stopped.model_path == RunFolder(tmp_path).latest_checkpoint()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
     assert reported == [] and sys.unraisablehook is report  # not printed; the hook restored
@@ -784,7 +844,8 @@ def test_init_from_starts_a_new_run_from_a_models_weights_and_counts_its_decisio
 
     more = train(parse_agent_config(config_dict("PPO", hyper=hyper, timesteps=160)), tmp_path / "more",
                  progress=False, init_from=first.model_path)
-    assert more.timesteps >= 160 and (tmp_path / "more" / "checkpoints" / "model_144_steps.zip").exists()
+    # the checkpoint due at 144 (48 decisions into this run) waits for the update that ends its rollout, at 160
+    assert more.timesteps >= 160 and (tmp_path / "more" / "checkpoints" / "model_160_steps.zip").exists()
     record = yaml.safe_load((tmp_path / "more" / "training.yaml").read_text())
     assert record["init_from"] == str(first.model_path) and record["timesteps"] == more.timesteps
 
