@@ -82,6 +82,21 @@ def test_resume_skips_a_damaged_model_for_the_newest_whole_checkpoint(run, capsy
 
 
 @pytest.mark.slow
+def test_resume_of_a_run_whose_config_names_another_algorithm_is_refused_and_the_folder_kept(run, tmp_path, capsys):
+    folder, _ = run
+    dqn = tmp_path / "dqn.yaml"
+    dqn.write_text(yaml.safe_dump(config_dict("DQN", env_extra={"velocity_actions": "discrete"}, timesteps=24,
+                                              hyper={"buffer_size": 500, "learning_starts": 8})))
+    (folder / "config.yaml").write_text(dqn.read_text())  # the PPO run's configuration replaced by a DQN one
+    before = files_of(folder)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
+        code, out, err = cli(["train", dqn, "--resume", "--timesteps", "24", "--out", folder, "--quiet"], capsys)
+    assert code == 2 and f"none of the 3 model files of the run in {folder} is a whole DQN model" in err
+    assert "--overwrite" in err and "fresh model" not in out and len(err.strip().splitlines()) == 1
+    assert files_of(folder) == before
+
+
+@pytest.mark.slow
 def test_a_configuration_that_does_not_match_the_model_is_refused_before_anything_is_written(run, capsys):
     folder, config = run
     edited = yaml.safe_load((folder / "config.yaml").read_text())

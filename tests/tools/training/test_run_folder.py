@@ -104,3 +104,46 @@ def test_the_latest_loadable_checkpoint_skips_a_damaged_one(tmp_path, config, mo
         assert folder.latest_checkpoint(config.algorithm) == folder.checkpoint_path(32)
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
         assert folder.plan(config, resume=True).model == folder.checkpoint_path(32)
+
+
+def files_of(folder: RunFolder) -> dict:
+    return {path: path.read_bytes() for path in sorted(folder.path.rglob("*")) if path.is_file()}
+
+
+def test_resume_refuses_a_run_whose_models_are_of_another_algorithm_than_its_config(tmp_path, model):
+    dqn = parse_agent_config(config_dict("DQN", env_extra={"velocity_actions": "discrete"},
+                                         hyper={"buffer_size": 500, "learning_starts": 32}, timesteps=64,
+                                         checkpoint_freq=16))
+    folder = RunFolder(tmp_path)
+    folder.write_config(dqn)  # a PPO run whose config.yaml was replaced by a DQN one
+    save(model, folder, 16, 32)
+    model.save(folder.model_path)
+    before = files_of(folder)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"), \
+            pytest.raises(RunError, match=rf"--resume: none of the 3 model files of the run in {tmp_path} is a whole "
+                                          rf"DQN model, as its config\.yaml names \(the last: {folder.model_path}: "
+                                          r"expected a DQN model.*a PPO or A2C policy\).*--overwrite"):
+        folder.plan(dqn, resume=True)
+    assert files_of(folder) == before
+
+
+def test_resume_refuses_a_run_whose_every_model_file_is_damaged(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)
+    save(model, folder, 16, 32)
+    model.save(folder.model_path)
+    for path in [folder.checkpoint_path(16), folder.checkpoint_path(32), folder.model_path]:
+        path.write_bytes(path.read_bytes()[:5000])
+    before = files_of(folder)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"), \
+            pytest.raises(RunError, match=rf"none of the 3 model files of the run in {tmp_path} is a whole PPO model.*"
+                                          rf"{folder.model_path} \(not a whole zip archive\).*Start the run over with "
+                                          r"--overwrite"):
+        folder.plan(config, resume=True)
+    assert files_of(folder) == before
+
+
+def test_resume_of_a_run_stopped_before_its_first_checkpoint_starts_a_fresh_model(tmp_path, config):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)  # nothing saved yet: nothing of the run would be lost
+    assert folder.plan(config, resume=True).model is None
