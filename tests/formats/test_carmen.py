@@ -361,3 +361,25 @@ def test_replay_options_name_themselves_before_any_work(tmp_path, capsys, option
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert expected.format(file=file) in err and "run.log" not in err
+
+
+def test_replay_refuses_a_folder_in_use_unless_overwritten(tmp_path, capsys):
+    from emmi_gym.tools.cli import main
+
+    log = tmp_path / "short.log"
+    log.write_text("\n".join(flaser(0.5 * k, float(k)) for k in range(4)) + "\n")
+    out = tmp_path / "out"
+    replay = ["replay", str(log), "--max-range", "8", "--particles", "2", "--out", str(out), "--quiet"]
+    assert main(replay) == 0
+    (out / "notes.txt").write_text("mine")
+    before = {path: path.read_bytes() for path in out.iterdir()}
+    with pytest.raises(SystemExit) as exit_info:
+        main(replay)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert f"{out} is not empty (it holds best_map.png," in err and "replace it with --overwrite" in err
+    assert "--resume" not in err and {path: path.read_bytes() for path in out.iterdir()} == before
+    (out / "best_trajectory.tum").write_text("an earlier replay's")
+    assert main([*replay, "--overwrite"]) == 0
+    assert (out / "notes.txt").read_text() == "mine" and (out / "metrics.csv").exists()
+    assert "an earlier replay's" not in (out / "best_trajectory.tum").read_text()
