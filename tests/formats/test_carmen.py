@@ -383,3 +383,41 @@ def test_replay_refuses_a_folder_in_use_unless_overwritten(tmp_path, capsys):
     assert main([*replay, "--overwrite"]) == 0
     assert (out / "notes.txt").read_text() == "mine" and (out / "metrics.csv").exists()
     assert "an earlier replay's" not in (out / "best_trajectory.tum").read_text()
+
+
+def map_server_world(folder):
+    """A map_server map of a walled 4 m room, ``room_map.yaml`` and ``.pgm`` in ``folder`` (as ``record --out
+    room.log`` names its map): a world to record in."""
+    from emmi_gym.formats.map_server import write_map_server
+    from emmi_gym.geometry.grid import GridGeometry
+
+    values = np.zeros((40, 40), dtype=np.int8)
+    values[[0, -1], :] = values[:, [0, -1]] = 100
+    return write_map_server(folder / "room_map.yaml", values, GridGeometry(0.1, 0.0, 0.0, 40, 40))
+
+
+def test_record_refuses_to_write_over_its_world_or_one_output_over_another(tmp_path, capsys):
+    from emmi_gym.tools.cli import main
+    from emmi_gym.world.loader import world_path
+
+    world = tmp_path / "w.yaml"
+    world.write_bytes(world_path("loop_corridor").read_bytes())
+    (tmp_path / "link.log").symlink_to(world)
+    room = map_server_world(tmp_path)
+    before = {path: path.read_bytes() for path in tmp_path.iterdir() if path.is_file()}
+    for argv, says in (
+        ([str(world), "--out", str(world)], f"--out {world}: expected a file apart from the world file {world}"),
+        ([str(world), "--out", str(tmp_path / "link.log")], "which it is (links resolved) and would be overwritten"),
+        ([str(room), "--out", str(tmp_path / "room.log")],
+         f"the map of --out {tmp_path / 'room_map.yaml'}: expected a file apart from the world file {room}"),
+        ([str(world), "--out", str(tmp_path / "run.log"), "--bag-out", str(tmp_path / "run.log")],
+         f"--bag-out {tmp_path / 'run.log'}: expected a file apart from --out {tmp_path / 'run.log'}, which it is "
+         "(links resolved) and would be written over; give another --bag-out"),
+    ):
+        with pytest.raises(SystemExit) as exit_info:
+            main(["record", *argv, "--route", "explore", "--beams", "30"])
+        assert exit_info.value.code == 2
+        err = capsys.readouterr().err
+        assert says in err and len(err.strip().splitlines()) == 1, err
+    assert {path: path.read_bytes() for path in tmp_path.iterdir() if path.is_file()} == before
+    assert not (tmp_path / "run.log").exists()
