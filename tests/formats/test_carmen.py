@@ -421,3 +421,11 @@ def test_record_refuses_to_write_over_its_world_or_one_output_over_another(tmp_p
         assert says in err and len(err.strip().splitlines()) == 1, err
     assert {path: path.read_bytes() for path in tmp_path.iterdir() if path.is_file()} == before
     assert not (tmp_path / "run.log").exists()
+
+
+def test_odometry_timestamps_that_go_backwards_are_reported_with_their_lines():
+    odometry = [f"ODOM {0.1 * k!r} 0 0 0 0 0 {t!r} host {t!r}" for k, t in enumerate([1.0, 2.0, 1.5, 3.0])]
+    assert carmen.parse_lines(["# header", *odometry]).report()[-1] == (
+        "odometry timestamps go backwards 1 time(s), first at line 4 (1.5 after 2.0 at line 3): times and rates "
+        "from them are not trustworthy")
+    assert carmen.parse_lines(odometry[:1] * 3).timing == []  # odometry at one time: no sentence of its own
