@@ -83,3 +83,13 @@ def test_a_first_run_says_that_numba_compiles_and_where_it_caches(tmp_path, monk
     kernel_cache_folder().mkdir(parents=True, exist_ok=True)
     (kernel_cache_folder() / "_kernels.insert_scans-141.py311.nbi").write_bytes(b"")
     assert kernels_compiled() and first_run_note() is None
+
+
+@pytest.mark.parametrize("argv", [["evaluate"], ["train", "c.yaml"], ["benchmark"], ["score-checkpoints", "run"]])
+def test_the_commands_that_load_models_say_that_model_files_can_run_code(argv, capsys):
+    parser = build_parser()
+    assert parser.parse_args([*argv, "--trust-model"]).trust_model
+    with pytest.raises(SystemExit):
+        parser.parse_args([argv[0], "--help"])
+    shown = " ".join(capsys.readouterr().out.split())
+    assert "zips of pickles (Stable-Baselines3's format), which can run code" in shown and "--trust-model" in shown
