@@ -59,6 +59,11 @@ def run(args: argparse.Namespace) -> int:
     set_torch_threads(training_torch_threads(config) if args.torch_threads is None else args.torch_threads)
     out = args.out or output_folder(f"runs/{Path(args.config).stem}_seed{config.seed}")
     arguments.trust_models(args, [args.init_from, out if args.resume else None])
+    finished = args.resume and not args.overwrite and args.init_from is None
+    trained = RunFolder(out).already_trained(config) if finished else None
+    if trained is not None:  # nothing is written: its model and records stay as they are
+        print(f"{out}: already trained to {trained} decisions; nothing to do (give a larger --timesteps to train on)")
+        return 0
     print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
           f"{out}/tb)")

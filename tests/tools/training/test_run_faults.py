@@ -68,6 +68,15 @@ def test_resume_below_what_is_trained_is_refused_and_the_folder_kept(run, capsys
 
 
 @pytest.mark.slow
+def test_resuming_a_finished_run_says_there_is_nothing_to_do_and_writes_nothing(run, capsys):
+    folder, config = run
+    before = files_of(folder)
+    code, out, _ = cli(["train", config, "--resume", "--timesteps", "32", "--out", folder, "--quiet"], capsys)
+    assert code == 0 and f"{folder}: already trained to 32 decisions; nothing to do" in out and "trained 32" not in out
+    assert files_of(folder) == before
+
+
+@pytest.mark.slow
 def test_resume_skips_a_damaged_model_for_the_newest_whole_checkpoint(run, capsys):
     folder, config = run
     with zipfile.ZipFile(folder / "model.zip") as archive:

@@ -147,3 +147,33 @@ def test_resume_of_a_run_stopped_before_its_first_checkpoint_starts_a_fresh_mode
     folder = RunFolder(tmp_path)
     folder.write_config(config)  # nothing saved yet: nothing of the run would be lost
     assert folder.plan(config, resume=True).model is None
+
+
+def test_a_finished_run_is_already_trained_to_its_budget_and_not_to_a_larger_one(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)
+    save(model, folder, 16)
+    model.num_timesteps = config.total_timesteps
+    try:
+        model.save(folder.model_path)
+    finally:
+        model.num_timesteps = 0
+    assert folder.already_trained(config) == config.total_timesteps
+    assert folder.already_trained(replace(config, total_timesteps=128)) is None  # decisions to train
+    with pytest.raises(RunError, match="is not the configuration of the run"):
+        folder.already_trained(replace(config, seed=4))
+    save(model, folder, 96)  # a checkpoint past the budget: plan says what is wrong
+    assert folder.already_trained(config) is None
+
+
+def test_a_run_whose_only_checkpoint_is_damaged_is_named_damaged_not_without_checkpoints(tmp_path, config, model):
+    from emmi_gym.tools.training.run_folders.model_files import ModelFileError
+
+    folder = RunFolder(tmp_path)
+    save(model, folder, 16)
+    folder.checkpoint_path(16).write_bytes(folder.checkpoint_path(16).read_bytes()[:-200])
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"), \
+            pytest.raises(ModelFileError, match=rf"{tmp_path}: expected a run with a whole checkpoint or model; its 1 "
+                                                rf"model file\(s\) are all damaged, the last: "
+                                                rf"{folder.checkpoint_path(16)}: expected a Stable-Baselines3 model"):
+        folder.whole_checkpoints()

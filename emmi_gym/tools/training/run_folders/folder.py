@@ -287,9 +287,30 @@ class RunFolder:
             if finished_at > (found[-1][0] if found else 0):
                 found.append((finished_at, self.model_path))
         if not found:
+            self.check_models_not_all_damaged()
             raise FileNotFoundError(f"no checkpoint in {self.checkpoint_dir}: was {self.path} written by "
                                     "'emmi-gym train'?")
         return found
+
+    def check_models_not_all_damaged(self) -> None:
+        """A :class:`~emmi_gym.tools.training.run_folders.model_files.ModelFileError` naming the last of the run's
+        model files and what is wrong with it where it has some but none is whole (:meth:`whole_checkpoints`
+        found none: the run is not one without checkpoints, its checkpoints are damaged)."""
+        files = self.model_files()
+        if files:
+            raise ModelFileError(str(self.path), "", f"a run with a whole checkpoint or model; its {len(files)} "
+                                 f"model file(s) are all damaged, the last: {_model_problem(files[-1])}")
+
+    def already_trained(self, config: AgentConfig) -> int | None:
+        """The decisions of the run's whole ``model.zip`` if resuming it with ``config`` would train none: the run
+        finished ``config.total_timesteps`` and holds no checkpoint past them; None otherwise (and where
+        :meth:`plan` is to say what is wrong). Refuses, as :meth:`plan` does, a ``config`` that is not the run's."""
+        self.check_resumable(config)
+        if not self.model_path.is_file() or _model_problem(self.model_path, config.algorithm) is not None:
+            return None
+        finished = saved_decisions(self.model_path)
+        past = [decisions for decisions, _ in self.checkpoints() if decisions > finished]
+        return finished if finished == config.total_timesteps and not past else None
 
     def check_some_model_loads(self, algorithm: str) -> None:
         """Refuse to resume a run that saved model files of which none is a whole model of ``algorithm`` (its
