@@ -91,9 +91,11 @@ class RayActor:
         self._ray, self.name = ray, name
         self.actor = ray.remote(num_cpus=1)(factory).remote(*args)
         self._reply = None
+        self._call = "it to be built"
 
     def submit(self, method: str, *args) -> None:
         self._reply = getattr(self.actor, method).remote(*args)
+        self._call = f"its reply to {method}"
 
     def result(self, heartbeat_timeout: float | None = None):
         """What the submitted call returned; what the actor raised, or its end, as an
@@ -103,7 +105,7 @@ class RayActor:
         from .parallel import ActorFailed, ActorStalled
 
         reply, self._reply = self._reply, None
-        if heartbeat_timeout is not None and not self._ray.wait([reply], timeout=heartbeat_timeout)[0]:
+        if heartbeat_timeout is not None and not self._ended(reply, heartbeat_timeout):
             raise ActorStalled(f"{self.name} (a Ray actor) has not ended its call within {heartbeat_timeout:g} s: "
                                "it was stopped, or is stuck in its env")
         try:
@@ -111,6 +113,18 @@ class RayActor:
         except self._ray.exceptions.RayError as error:
             cause = getattr(error, "cause", None) or error
             raise ActorFailed(f"{self.name}: {type(cause).__name__}: {str(cause).strip().splitlines()[-1]}") from None
+
+    def _ended(self, reply, timeout: float) -> bool:
+        """Whether the call of ``reply`` ends within ``timeout`` seconds; a warning if it has not after
+        :data:`~emmi_gym.concurrency.parallel.SILENCE_NOTICE` seconds of a longer ``timeout``."""
+        from .parallel import SILENCE_NOTICE, warn_of_silence
+
+        if timeout > SILENCE_NOTICE:
+            if self._ray.wait([reply], timeout=SILENCE_NOTICE)[0]:
+                return True
+            warn_of_silence(f"{self.name} (a Ray actor) has not ended its call", self._call, timeout)
+            timeout -= SILENCE_NOTICE
+        return bool(self._ray.wait([reply], timeout=timeout)[0])
 
     def ask_to_close(self) -> None:
         """Nothing to ask: :meth:`close` ends the actor."""
