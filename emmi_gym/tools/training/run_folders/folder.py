@@ -286,20 +286,22 @@ class RunFolder:
             finished_at = saved_decisions(self.model_path)
             if finished_at > (found[-1][0] if found else 0):
                 found.append((finished_at, self.model_path))
+        unloadable = None if found else self._unloadable()
+        if unloadable is not None:
+            raise ModelFileError(str(self.path), "", f"a run with a whole checkpoint or model; its {unloadable[0]} "
+                                 f"model file(s) are all damaged, the last: {unloadable[1]}")
         if not found:
-            self.check_models_not_all_damaged()
             raise FileNotFoundError(f"no checkpoint in {self.checkpoint_dir}: was {self.path} written by "
                                     "'emmi-gym train'?")
         return found
 
-    def check_models_not_all_damaged(self) -> None:
-        """A :class:`~emmi_gym.tools.training.run_folders.model_files.ModelFileError` naming the last of the run's
-        model files and what is wrong with it where it has some but none is whole (:meth:`whole_checkpoints`
-        found none: the run is not one without checkpoints, its checkpoints are damaged)."""
+    def _unloadable(self, algorithm: str | None = None) -> tuple[int, str] | None:
+        """Where the run saved model files and none was found whole (of ``algorithm``): how many, and what is wrong
+        with the last (``model.zip``, else the checkpoint of the most decisions); None where it saved none."""
         files = self.model_files()
-        if files:
-            raise ModelFileError(str(self.path), "", f"a run with a whole checkpoint or model; its {len(files)} "
-                                 f"model file(s) are all damaged, the last: {_model_problem(files[-1])}")
+        if not files:
+            return None
+        return len(files), _model_problem(files[-1], algorithm) or f"{files[-1]}: not a model the run can go on from"
 
     def already_trained(self, config: AgentConfig) -> int | None:
         """The decisions of the run's whole ``model.zip`` if resuming it with ``config`` would train none: the run
@@ -314,18 +316,15 @@ class RunFolder:
 
     def check_some_model_loads(self, algorithm: str) -> None:
         """Refuse to resume a run that saved model files of which none is a whole model of ``algorithm`` (its
-        ``config.yaml``'s): a :class:`RunError` naming the folder and what is wrong with the newest file, and how to
-        start over (the last file: ``model.zip``, else the checkpoint of the most decisions); a run that saved
-        none (it stopped before its first checkpoint) passes."""
-        files = self.model_files()
-        if not files:
-            return
-        problem = _model_problem(files[-1], algorithm) or f"{files[-1]}: not a model the run can continue from"
-        raise RunError(
-            f"--resume: none of the {len(files)} model files of the run in {self.path} is a whole {algorithm} model, "
-            f"as its {self.config_path.name} names (the last: {problem}); nothing was changed. Start the run "
-            "over with --overwrite (which removes its files), or give another --out"
-        )
+        ``config.yaml``'s): a :class:`RunError` naming the folder and what is wrong with the last file, and how to
+        start over; a run that saved none (it stopped before its first checkpoint) passes."""
+        unloadable = self._unloadable(algorithm)
+        if unloadable is not None:
+            raise RunError(
+                f"--resume: none of the {unloadable[0]} model files of the run in {self.path} is a whole {algorithm} "
+                f"model, as its {self.config_path.name} names (the last: {unloadable[1]}); nothing was changed. Start "
+                "the run over with --overwrite (which removes its files), or give another --out"
+            )
 
     @classmethod
     def check_init_from(cls, path, config: AgentConfig, allow_no_training: bool = False) -> WarmStart:
