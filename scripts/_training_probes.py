@@ -10,9 +10,12 @@ Every probe gets its own copy of a small finished run R (MaskablePPO on LoopCorr
 
 from __future__ import annotations
 
+import base64
 import hashlib
 import io
 import json
+import os
+import pickle
 import re
 import shutil
 import subprocess
@@ -317,6 +320,7 @@ def training_probes(folder: Path) -> list[Probe]:
     probes.append(Probe("12. train with obs_size: 32", [*cli, "train", cfg["obs32"], "--out", str(f / "T12"),
                                                          "--quiet"], r"obs_size", success=lambda *_: None, either=True))
     probes += _fault_probes(f, cli, cfg, run, run_copy)
+    probes += _third_audit_probes(f, cli, cfg, run, run_copy, members)
     # the pretrained agents as the README loads them
     probes += [
         Probe("README: import emmi_gym; emmi_gym.pretrained.load(NAME)",
@@ -393,4 +397,129 @@ def _fault_probes(f: Path, cli: list, cfg: dict, run: Path, run_copy) -> list[Pr
               [*cli, "compare-policies", "--options", '{"world": "x.yaml"}', "--out", str(f / "F11_cmp")],
               r"--options: a world"),
     ]
+    return probes
+
+
+class _MakesAFolder:
+    """Unpickled, makes the folder ``path``: code a model file's pickle runs (its class is not in the pickle)."""
+
+    def __init__(self, path: Path):
+        self.path = str(path)
+
+    def __reduce__(self):
+        return os.mkdir, (self.path,)
+
+
+def _odometry_bag(path: Path, odometry: list[tuple[float, float]]) -> Path:
+    """A ROS 2 bag of ``/odom`` (Odometry at each ``(stamp, x)``, in that order) and one ``/scan`` at 0.5 s."""
+    from emmi_gym.formats.ros_messages import LASER_SCAN, ODOMETRY, header, odometry_message
+    from emmi_gym.formats.ros_writers import open_bag
+
+    with open_bag(path) as bag:
+        for k, (stamp, x) in enumerate(odometry):
+            bag.write("/odom", ODOMETRY, k, odometry_message(bag.store, int(stamp * 1e9), "odom", "base_link",
+                                                             (x, 0.0, 0.0)))
+        bag.write("/scan", LASER_SCAN, len(odometry), bag.store.types[LASER_SCAN](
+            header=header(bag.store, 500_000_000, "base_link"), angle_min=-1.0, angle_max=-0.5, angle_increment=0.5,
+            time_increment=0.0, scan_time=0.0, range_min=0.1, range_max=30.0,
+            ranges=np.array([1.0, 2.0], np.float32), intensities=np.zeros(0, np.float32)))
+    return path
+
+
+def _third_audit_probes(f: Path, cli: list, cfg: dict, run: Path, run_copy, members: dict) -> list[Probe]:
+    """The third audit's cases (2026-12-01): a resume whose models do not load, record writing over its world, odometry
+    that goes back or is not finite, model files whose pickles run code, replay into an earlier replay's folder, a
+    finished run resumed and a run whose only checkpoint is damaged (numbered as the issue numbered them)."""
+    probes = []
+    dqn = dict(CORRIDOR, algorithm="DQN", hyperparameters={"buffer_size": 100, "learning_starts": 8,
+                                                           "policy_kwargs": {"net_arch": [8]}})
+    (f / "dqn.yaml").write_text(yaml.safe_dump(dqn))
+    g1 = run_copy("G1_dqn")
+    shutil.copyfile(f / "dqn.yaml", g1 / "config.yaml")
+    g1_cut = run_copy("G1_cut")
+    for model in [g1_cut / "model.zip", *(g1_cut / "checkpoints").glob("model_*_steps.zip")]:
+        model.write_bytes(model.read_bytes()[:5000])
+    for label, folder, config in (("config.yaml replaced by a DQN one", g1, str(f / "dqn.yaml")),
+                                  ("every model file cut to 5 kB", g1_cut, cfg["corridor24"])):
+        probes.append(Probe(f"G1. train --resume --out R ({label})",
+                            [*cli, "train", config, "--resume", "--timesteps", "24", "--out", str(folder), "--quiet"],
+                            r"none of the \d+ model files of the run in .* is a whole .* model.*--overwrite",
+                            keep=[folder / "config.yaml", folder / "model.zip", folder / "training.yaml",
+                                  *sorted((folder / "checkpoints").glob("*"))]))
+    # 3. record and its own world
+    from emmi_gym.formats.map_server import write_map_server
+    from emmi_gym.geometry.grid import GridGeometry
+    from emmi_gym.world.loader import world_path
+
+    shutil.copyfile(world_path("loop_corridor"), f / "w.yaml")
+    room = np.zeros((40, 40), np.int8)
+    room[[0, -1], :] = room[:, [0, -1]] = 100
+    lab = write_map_server(f / "lab_map.yaml", room, GridGeometry(0.1, 0.0, 0.0, 40, 40))
+    record = [*cli, "record", "--route", "explore", "--beams", "30"]
+    probes += [
+        Probe("G3. record w.yaml --out w.yaml", [*record, str(f / "w.yaml"), "--out", str(f / "w.yaml")],
+              r"--out .*w\.yaml: expected a file apart from the world file", keep=[f / "w.yaml"]),
+        Probe("G3. record lab_map.yaml --out lab.log", [*record, str(lab), "--out", str(f / "lab.log")],
+              r"the map of --out .*lab_map\.yaml: expected a file apart from the world file",
+              keep=[lab, lab.with_suffix(".pgm")]),
+        Probe("G3. record --out run.log --bag-out run.log", [*record, str(f / "w.yaml"), "--out", str(f / "run.log"),
+                                                            "--bag-out", str(f / "run.log")],
+              r"--bag-out .*run\.log: expected a file apart from --out", keep=[f / "run.log"]),
+    ]
+    # 4. odometry that goes back, or is not finite
+    replay = [*cli, "replay", "--odom", "/odom", "--quiet"]
+    for label, odometry, pattern in (
+            ("odometry stamps that go back", [(0.0, 0.0), (1.0, 1.0), (0.5, 2.0)], r"stamps never go back"),
+            ("NaN odometry", [(0.0, 0.0), (1.0, float("nan"))], r"finite x, y and orientation"),
+            ("infinite odometry", [(0.0, 0.0), (1.0, float("inf"))], r"finite x, y and orientation")):
+        bag = _odometry_bag(f / f"G4_{label.replace(' ', '_')}", odometry)
+        probes.append(Probe(f"G4. replay a bag of {label}", [*replay, str(bag), "--out", str(f / "G4_out")],
+                            rf"field '/odom': expected odometry.*{pattern}.*message"))
+    # 5. model files whose pickles run code
+    ran = f / "G5_ran"
+    data = json.loads(members["data"])
+    data["lr_schedule"] = {":type:": "<class 'function'>",
+                           ":serialized:": base64.b64encode(pickle.dumps(_MakesAFolder(ran), protocol=4)).decode()}
+    hostile = run_copy("G5")
+    shutil.rmtree(hostile / "checkpoints")
+    _write_zip(hostile / "checkpoints" / "model_16_steps.zip", dict(members, data=json.dumps(data).encode()))
+    shutil.copyfile(hostile / "checkpoints" / "model_16_steps.zip", hostile / "model.zip")
+    refused = r"field 'data\.lr_schedule': expected a pickle naming only classes of .*--trust-model"
+    probes += [
+        Probe("G5. evaluate MODEL whose pickle runs code", [*cli, "evaluate", str(hostile / "model.zip"),
+                                                             "--episodes", "1"], refused, keep=[ran]),
+        Probe("G5. train --init-from MODEL whose pickle runs code",
+              [*cli, "train", cfg["corridor24"], "--init-from", str(hostile / "model.zip"), "--out", str(f / "T_G5"),
+               "--quiet"], refused, keep=[ran]),
+        Probe("G5. score-checkpoints R (R's checkpoint's pickle runs code)",
+              [*cli, "score-checkpoints", str(hostile), "--episodes", "1", "--workers", "1", "--quiet"], refused,
+              keep=[ran]),
+    ]
+    # 7. replay into an earlier replay's folder
+    log = f / "G7.log"
+    scan = " ".join(["2.5"] * 180)
+    log.write_text("".join(f"FLASER 180 {scan} 0 0 0 {0.5 * k} 0 0 {k}.0 h {k}.0\n" for k in range(4)))
+    earlier = f / "G7_out"
+    subprocess.run([*cli, "replay", str(log), "--max-range", "8", "--particles", "2", "--out", str(earlier),
+                    "--quiet"], check=True, capture_output=True)
+    probes.append(Probe("G7. replay --out O (O holds an earlier replay)",
+                        [*cli, "replay", str(log), "--max-range", "8", "--particles", "2", "--seed", "1", "--out",
+                         str(earlier), "--quiet"], r"is not empty .*--overwrite",
+                        keep=sorted(earlier.glob("*"))))
+    # 8. a finished run resumed; a run whose only checkpoint is damaged
+    finished = run_copy("G8_finished")
+    probes.append(Probe("G8. train --resume on a finished run", [*cli, "train", cfg["corridor"], "--resume", "--out",
+                                                                  str(finished), "--quiet"],
+                        success=lambda last, _: None if "already trained to 16 decisions; nothing to do" in last
+                        else f"said {last!r}",
+                        keep=[finished / "model.zip", finished / "training.yaml", finished / "config.yaml"]))
+    damaged = run_copy("G8_damaged")
+    (damaged / "model.zip").unlink()
+    checkpoints = sorted((damaged / "checkpoints").glob("model_*_steps.zip"))
+    for extra in checkpoints[1:]:
+        extra.unlink()
+    checkpoints[0].write_bytes(checkpoints[0].read_bytes()[:5000])
+    probes.append(Probe("G8. score-checkpoints R (R's only checkpoint is damaged)",
+                        [*cli, "score-checkpoints", str(damaged), "--episodes", "1", "--quiet"],
+                        rf"are all damaged, the last: .*{checkpoints[0].name}"))
     return probes

@@ -9,7 +9,10 @@ files), each given to the command or function it targets in a process of its own
 bar if it was killed), the seconds and the process's peak resident memory. Every probe should
 end within the minute (or show progress) under 1 GB, with a message naming the file, field or
 option. The third: the training side (``_training_probes``: runs, clones, resumes, model and
-demonstration files, training records, the tools' CSVs), each probe with a verdict (a clear error,
+demonstration files, training records, the tools' CSVs, and the third audit's cases G1-G8: resumes
+whose models do not load, ``record`` over its world, bag odometry that goes back or is not finite,
+model pickles that run code, ``replay`` into an earlier replay, a finished run resumed, a damaged
+only checkpoint), each probe with a verdict (a clear error,
 did what it should, or a silent wrong result, data loss, a raw traceback, over 1 GB or 120 s) and a
 summary line counting them.
 

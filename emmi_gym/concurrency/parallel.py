@@ -9,6 +9,7 @@ import pickle
 import signal
 import threading
 import time
+import warnings
 from collections.abc import Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, as_completed, wait
 
@@ -128,6 +129,9 @@ ACTOR_START_METHOD = "forkserver" if "forkserver" in mp.get_all_start_methods() 
 #: Seconds a :class:`ProcessActor` is given to end after ``SIGTERM`` before it is killed (a stopped process
 #: takes no signal but ``SIGKILL``).
 TERMINATE_TIMEOUT = 1.0
+#: Seconds a call to a :class:`ProcessActor` may make no progress before the wait for it is said (a warning naming
+#: the actor, the call and how long it is waited for), where its heartbeat timeout is longer.
+SILENCE_NOTICE = 60.0
 
 
 class ActorFailed(RuntimeError):
@@ -187,6 +191,13 @@ def _serve(connection, factory, args, heartbeat) -> None:
         connection.close()
 
 
+def warn_of_silence(who: str, call: str, timeout: float) -> None:
+    """Say (a warning) that ``who`` ("rollout worker 0 (process 12) has made no progress") has been silent for
+    :data:`SILENCE_NOTICE` seconds, that ``call`` is waited for, and how long before the run stops."""
+    warnings.warn(f"{who} for {SILENCE_NOTICE:g} s: waiting for {call}, up to {timeout:g} s without progress "
+                  "(worker_timeout) before the run stops (was it stopped, or is it stuck in its env?)", stacklevel=3)
+
+
 class ProcessActor:
     """An object built by ``factory(*args)`` in a local process of its own (the Ray actor's model, with
     ``multiprocessing``): :meth:`submit` starts one of its methods there, :meth:`result` waits for what it
@@ -205,6 +216,7 @@ class ProcessActor:
         self.process.start()
         child.close()  # only the process holds its end: its exit ends the pipe, and recv raises EOFError
         self._waiting = True  # for the object to be built
+        self._call = "it to be built"  # what is waited for, in words
         self._closing = False
         self._sending: threading.Thread | None = None
         self._send_error: Exception | None = None
@@ -221,6 +233,7 @@ class ProcessActor:
                                          daemon=True, name=f"{self.name}: sending")
         self._sending.start()
         self._waiting = True
+        self._call = f"its reply to {method}"
 
     def _send(self, message: bytes) -> None:
         try:
@@ -251,6 +264,7 @@ class ProcessActor:
         """Wait until a reply (or the pipe's end) can be read; :class:`ActorStalled` if the heartbeat stands still
         for ``timeout`` seconds."""
         beats, since = self._heartbeat.value, time.monotonic()
+        said = timeout <= SILENCE_NOTICE
         while True:
             if self._sending is not None and self._sending.is_alive():
                 self._sending.join(min(1.0, timeout))
@@ -261,6 +275,9 @@ class ProcessActor:
             elif time.monotonic() - since > timeout:
                 raise ActorStalled(f"{self.name} (process {self.process.pid}) has made no progress for {timeout:g} "
                                    "s: it was stopped, or is stuck in its env")
+            elif not said and time.monotonic() - since > SILENCE_NOTICE:
+                said = True
+                warn_of_silence(f"{self.name} (process {self.process.pid}) has made no progress", self._call, timeout)
 
     def ask_to_close(self) -> None:
         """Ask the process to end once the call under way, if any, is done."""

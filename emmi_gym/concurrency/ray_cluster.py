@@ -4,8 +4,10 @@ benchmark jobs as Ray tasks, training envs and rollout workers as Ray actors."""
 from __future__ import annotations
 
 import ipaddress
+import os
 import signal
 import socket
+import sys
 import threading
 import warnings
 from urllib.parse import urlsplit
@@ -14,6 +16,12 @@ from ..inputs.extras import missing_extra
 
 #: The address that starts a Ray instance on this machine instead of joining a cluster.
 LOCAL = "local"
+#: The address a Ray instance started here binds: the loopback one, so that nothing beyond this machine reaches it.
+LOOPBACK = "127.0.0.1"
+#: Ray's switch for a machine without clusters, read when Ray is imported: off, its node's address is the loopback
+#: one, which its GCS, raylet and workers then bind (Ray turns a ``_node_ip_address`` of 127.0.0.1 into the
+#: machine's reachable address unless it is off; on, they bind every interface).
+SINGLE_MACHINE_VARIABLE = ("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 
 
 def public_host(address: str) -> str | None:
@@ -29,26 +37,45 @@ def public_host(address: str) -> str | None:
     return None if all(ip.is_private or ip.is_loopback for ip in found) else host
 
 
+def ray_init_arguments(address: str | None, environ=None) -> dict:
+    """The keywords of ``ray.init`` that :func:`connect_ray` passes for ``address``: no dashboard, Ray's logs kept
+    out of the terminal, and for a Ray instance started on this machine (``"local"``, or ``None`` where the
+    ``environ`` (default ``os.environ``) sets no ``RAY_ADDRESS``) a new instance whose node, GCS and raylet bind
+    the loopback address only (:data:`LOOPBACK`): a Ray cluster has no authentication."""
+    environ = os.environ if environ is None else environ
+    arguments = {"address": address, "include_dashboard": False, "logging_level": "ERROR", "log_to_driver": False}
+    if address == LOCAL or (address is None and not environ.get("RAY_ADDRESS")):
+        arguments.update(address=LOCAL, _node_ip_address=LOOPBACK)
+    return arguments
+
+
 def connect_ray(address: str | None = LOCAL):
-    """Connect to the Ray cluster at ``address`` (``"local"``: start one on this machine; ``None``:
-    Ray's own default, the ``RAY_ADDRESS`` environment variable, else a local instance) unless this
+    """Connect to the Ray cluster at ``address`` (``"local"``: start one on this machine, bound to the loopback
+    address; ``None``: the ``RAY_ADDRESS`` environment variable, else a local instance) unless this
     process is connected already, with a warning if the address is not a private or loopback one (a Ray
     cluster has no authentication: whoever reaches its ports runs code on its nodes). Returns ``(ray,
     started_here)``: the caller shuts down what it started."""
+    arguments = ray_init_arguments(address)
+    local = "_node_ip_address" in arguments
+    if local and "ray" not in sys.modules:  # before Ray is imported, here and in the processes it starts
+        os.environ.setdefault(*SINGLE_MACHINE_VARIABLE)
     try:
         import ray
     except ModuleNotFoundError as error:
         raise missing_extra(error, "Ray") or error from None
     if ray.is_initialized():
         return ray, False
+    if local and ray.util.get_node_ip_address() != LOOPBACK:
+        warnings.warn(f"Ray was imported before {SINGLE_MACHINE_VARIABLE[0]}={SINGLE_MACHINE_VARIABLE[1]} was set: "
+                      f"the local Ray instance listens on {ray.util.get_node_ip_address()} and every interface, not "
+                      "on the loopback address only", stacklevel=2)
     host = None if address in (None, LOCAL, "auto") else public_host(address)
     if host is not None:
         warnings.warn(f"--ray {address}: {host} is not a private or loopback address; a Ray cluster has no "
                       "authentication (whoever reaches its ports runs code on every node): keep its head on a "
                       "private network (see docs/scaling.md)", stacklevel=2)
     own_sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
-    ray.init(address=None if address in (None, LOCAL) else address, include_dashboard=False,
-             logging_level="ERROR", log_to_driver=False)
+    ray.init(**arguments)
     if own_sigterm is not None:  # Ray's driver handler exits at once; a run saves a checkpoint first (as Ctrl-C)
         signal.signal(signal.SIGTERM, own_sigterm)
     return ray, True
@@ -64,9 +91,11 @@ class RayActor:
         self._ray, self.name = ray, name
         self.actor = ray.remote(num_cpus=1)(factory).remote(*args)
         self._reply = None
+        self._call = "it to be built"
 
     def submit(self, method: str, *args) -> None:
         self._reply = getattr(self.actor, method).remote(*args)
+        self._call = f"its reply to {method}"
 
     def result(self, heartbeat_timeout: float | None = None):
         """What the submitted call returned; what the actor raised, or its end, as an
@@ -76,7 +105,7 @@ class RayActor:
         from .parallel import ActorFailed, ActorStalled
 
         reply, self._reply = self._reply, None
-        if heartbeat_timeout is not None and not self._ray.wait([reply], timeout=heartbeat_timeout)[0]:
+        if heartbeat_timeout is not None and not self._ended(reply, heartbeat_timeout):
             raise ActorStalled(f"{self.name} (a Ray actor) has not ended its call within {heartbeat_timeout:g} s: "
                                "it was stopped, or is stuck in its env")
         try:
@@ -84,6 +113,18 @@ class RayActor:
         except self._ray.exceptions.RayError as error:
             cause = getattr(error, "cause", None) or error
             raise ActorFailed(f"{self.name}: {type(cause).__name__}: {str(cause).strip().splitlines()[-1]}") from None
+
+    def _ended(self, reply, timeout: float) -> bool:
+        """Whether the call of ``reply`` ends within ``timeout`` seconds; a warning if it has not after
+        :data:`~emmi_gym.concurrency.parallel.SILENCE_NOTICE` seconds of a longer ``timeout``."""
+        from .parallel import SILENCE_NOTICE, warn_of_silence
+
+        if timeout > SILENCE_NOTICE:
+            if self._ray.wait([reply], timeout=SILENCE_NOTICE)[0]:
+                return True
+            warn_of_silence(f"{self.name} (a Ray actor) has not ended its call", self._call, timeout)
+            timeout -= SILENCE_NOTICE
+        return bool(self._ray.wait([reply], timeout=timeout)[0])
 
     def ask_to_close(self) -> None:
         """Nothing to ask: :meth:`close` ends the actor."""

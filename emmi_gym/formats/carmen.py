@@ -7,8 +7,9 @@ passed over, ``#`` lines are comments. Every record must have exactly its fields
 the timestamp, hostname and logger timestamp: a line with extra tokens (two lines glued
 together), NUL bytes, bytes that are not UTF-8, characters that are not ASCII (a digit or
 space of another script) or numbers Python reads but C does not (``1_000``) is malformed, an
-error naming the file and line (or, with ``skip_bad_lines``, counted). Laser lines whose
-timestamps go backwards, or are all the same, are reported with the line.
+error naming the file and line (or, with ``skip_bad_lines``, counted); so is a number that is
+not finite. Laser and odometry lines whose timestamps go backwards, and laser lines whose
+timestamps are all the same, are reported with the line.
 
 Reading is bounded by what a log can hold, not by what a file can: lines are read at most
 :data:`MAX_LINE_BYTES` long (a stream without newlines is refused at that length, a binary
@@ -307,7 +308,7 @@ def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: 
     log = CarmenLog()
     offset = np.zeros(3)
     held = idle = 0
-    times = _LaserTimes()
+    times = {LaserRecord: _Timestamps("laser"), OdometryRecord: _Timestamps("odometry", frozen_reported=False)}
     for number, line in enumerate(lines, start=1):
         if len(line) > MAX_LINE_BYTES:
             raise CarmenFormatError(source, number, _too_long())
@@ -353,11 +354,11 @@ def parse_lines(lines: Iterable[str], source: str = "<log>", *, skip_bad_lines: 
             raise CarmenFormatError(source, number, f"the records read so far take more than {max_bytes / 2**20:.3g} "
                                     f"MiB of memory ({len(log.records):,} records): a replay holds the whole log; "
                                     "split it")
-        if isinstance(record, LaserRecord):
-            times.add(record.timestamp, number)
-            if not np.any(record.ranges > 0):
-                log.scans_without_echo += 1
-    log.timing = times.report()
+        if type(record) in times:
+            times[type(record)].add(record.timestamp, number)
+        if isinstance(record, LaserRecord) and not np.any(record.ranges > 0):
+            log.scans_without_echo += 1
+    log.timing = [sentence for kind in times.values() for sentence in kind.report()]
     return log
 
 
@@ -374,11 +375,12 @@ def _idle(idle: int, source: str, number: int) -> int:
     return idle + 1
 
 
-class _LaserTimes:
-    """Whether the laser lines' timestamps go forward: the steps back (the first one's lines) and whether all
-    are the same."""
+class _Timestamps:
+    """Whether the timestamps of one kind of line (``what``: "laser", "odometry") go forward: the steps back (the
+    first one's lines) and, if ``frozen_reported``, whether all are the same."""
 
-    def __init__(self):
+    def __init__(self, what: str, frozen_reported: bool = True):
+        self.what, self.frozen_reported = what, frozen_reported
         self.count = self.back = 0
         self.first = self.last = None  # (timestamp, line)
         self.first_back = None
@@ -399,11 +401,11 @@ class _LaserTimes:
         sentences = []
         if self.back:
             line, timestamp, (previous, previous_line) = self.first_back
-            sentences.append(f"laser timestamps go backwards {self.back} time(s), first at line {line} ({timestamp!r} "
-                             f"after {previous!r} at line {previous_line}): times and rates from them are not "
-                             "trustworthy")
-        if self.count > 1 and not self.varies:
-            sentences.append(f"all {self.count} laser lines have the same timestamp {self.first[0]!r} (lines "
+            sentences.append(f"{self.what} timestamps go backwards {self.back} time(s), first at line {line} "
+                             f"({timestamp!r} after {previous!r} at line {previous_line}): times and rates from them "
+                             "are not trustworthy")
+        if self.frozen_reported and self.count > 1 and not self.varies:
+            sentences.append(f"all {self.count} {self.what} lines have the same timestamp {self.first[0]!r} (lines "
                              f"{self.first[1]} to {self.last[1]}): the log carries no time")
         return sentences
 

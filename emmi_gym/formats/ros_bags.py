@@ -17,7 +17,9 @@ A bag (a ROS 1 ``.bag``; a ROS 2 folder, or its ``.db3`` or ``.mcap`` file) is r
 
 Every scan gets the odometry pose at its header stamp, interpolated between the two odometry samples
 around it (:func:`emmi_gym.geometry.motion.interpolate_poses`); a scan outside the odometry's time span
-gets none, and the replay skips it. Time is the messages' header stamps, not the bag's receive times.
+gets none, and the replay skips it. Time is the messages' header stamps, not the bag's receive times;
+odometry whose stamps go back in the bag's order, and odometry or ground truth that is not finite, are
+refused, naming the message.
 Bad input raises :class:`BagError`, one line naming the bag, the topic, what was expected and what was
 found; the records read may take at most ``max_bytes`` of memory, as a CARMEN log's.
 """
@@ -92,6 +94,32 @@ class _Samples:
     truth: list          # (stamp ns, x, y, yaw)
     links: dict          # child frame -> (parent, x, y, yaw, upside_down); /tf_static over /tf
     base_frame: str
+    odometry_message: int = 0  # the message of the latest odometry sample, in its topic
+
+    def add_odometry(self, source: str, topic: str, number: int, stamp: int, pose) -> None:
+        """Add the odometry ``pose`` (x, y, yaw) stamped ``stamp`` (ns) of message ``number`` of ``topic``, checked
+        finite and stamped no earlier than the odometry before it in the bag (the replay follows odometry in time
+        order: a stamp that jumps back would reorder the path); :class:`BagError` naming the message otherwise."""
+        _check_finite_pose(source, topic, number, "odometry", pose)
+        if self.odometry and stamp < self.odometry[-1][0]:
+            raise BagError(source, topic, f"odometry whose stamps never go back in the bag's order (message "
+                           f"{self.odometry_message} is stamped {seconds(self.odometry[-1][0])!r} s)",
+                           f"message {number} at {seconds(stamp)!r} s")
+        self.odometry.append((stamp, *pose))
+        self.odometry_message = number
+
+    def add_truth(self, source: str, topic: str, number: int, stamp: int, pose) -> None:
+        """Add the true ``pose`` (x, y, yaw) stamped ``stamp`` (ns) of message ``number`` of ``topic``, checked
+        finite; :class:`BagError` naming the message otherwise."""
+        _check_finite_pose(source, topic, number, "ground-truth", pose)
+        self.truth.append((stamp, *pose))
+
+
+def _check_finite_pose(source: str, topic: str, number: int, what: str, pose) -> None:
+    """A :class:`BagError` naming message ``number`` of ``topic`` unless its ``what`` pose (x, y, yaw) is finite."""
+    if not all(math.isfinite(value) for value in pose):
+        raise BagError(source, topic, f"{what} poses of finite x, y and orientation (message {number}: x "
+                       f"{pose[0]!r}, y {pose[1]!r}, yaw {pose[2]!r})")
 
 
 def read_bag(path, topics: BagTopics = BagTopics(), *, max_bytes: int = carmen.MAX_LOG_BYTES,
@@ -208,20 +236,21 @@ def _collect(source: str, reader, chosen: dict[str, str], topics: BagTopics, max
             held += carmen.RECORD_BYTES + scan[1].nbytes
             samples.scans.append(scan)
         elif role == "odom":
-            samples.odometry.append((stamp_ns(message.header.stamp), *planar(message.pose.pose.position,
-                                                                            message.pose.pose.orientation)[:3]))
+            samples.add_odometry(source, topic, counts[topic], stamp_ns(message.header.stamp),
+                                 planar(message.pose.pose.position, message.pose.pose.orientation)[:3])
             samples.base_frame = _frame(message.child_frame_id) or samples.base_frame
             held += SAMPLE_BYTES
         elif role == "truth":
             pose = message.pose.pose if connection.msgtype != POSE_STAMPED else message.pose
-            samples.truth.append((stamp_ns(message.header.stamp), *planar(pose.position, pose.orientation)[:3]))
+            samples.add_truth(source, topic, counts[topic], stamp_ns(message.header.stamp),
+                              planar(pose.position, pose.orientation)[:3])
             held += SAMPLE_BYTES
         else:
             for transform in message.transforms:
                 parent, child = _frame(transform.header.frame_id), _frame(transform.child_frame_id)
                 link = planar(transform.transform.translation, transform.transform.rotation)
                 if role == "tf" and parent == odom_frame and child == base_frame and "odom" not in chosen:
-                    samples.odometry.append((stamp_ns(transform.header.stamp), *link[:3]))
+                    samples.add_odometry(source, topic, counts[topic], stamp_ns(transform.header.stamp), link[:3])
                 elif role == "tf_static":
                     static[child] = (parent, *link)
                 else:

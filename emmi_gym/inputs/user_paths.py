@@ -11,6 +11,7 @@ place, so a run killed mid-write leaves the previous file (or none), never half 
 from __future__ import annotations
 
 import os
+import re
 import stat
 import tempfile
 from pathlib import Path
@@ -74,6 +75,22 @@ def output_file(path, option: str = "--out") -> Path:
         raise OutputFolderError(f"{option} {path}: expected the name of a file to write, not a folder")
     output_folder(path.parent if str(path.parent) else Path("."), option)
     return path
+
+
+def check_outputs_apart(outputs: dict, inputs: dict) -> None:
+    """Refuse outputs (``{what: path}``: ``{"--out": "run.log", ...}``) of which one is one of the ``inputs`` (``{what:
+    path}``) or two are the same file, links and ``..`` resolved, before any work: :class:`OutputFolderError` naming
+    both (the input would be overwritten, or one output by the other)."""
+    taken = {Path(path).resolve(): (f"{what} {path}", "overwritten") for what, path in inputs.items()}
+    for what, path in outputs.items():
+        resolved = Path(path).resolve()
+        if resolved in taken:
+            other, fate = taken[resolved]
+            option = re.search(r"--[\w-]+", what)
+            raise OutputFolderError(f"{what} {path}: expected a file apart from {other}, which it is (links "
+                                    f"resolved) and would be {fate}; give another "
+                                    f"{option.group() if option else 'path'}")
+        taken[resolved] = (f"{what} {path}", "written over")
 
 
 def _why_not(path: Path, exc: OSError) -> str:

@@ -229,13 +229,18 @@ def dungeon_occupancy(path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> Occupancy
     return OccupancyImage(free, pixel_size, (0.0, 0.0), start, path.stem, str(path))
 
 
+def map_server_image(path, image: str) -> Path:
+    """The image file that the map_server YAML file ``path`` names as ``image``: absolute, or beside the file."""
+    return Path(image) if Path(image).is_absolute() else Path(path).parent / image
+
+
 def map_server_occupancy(path, data: dict | None = None) -> OccupancyImage:
     """A ROS map_server map (its YAML file and the image it names), classified by map_server's rules."""
     path = Path(path)
     if data is None:
         data = read_yaml_file(path, "map_server map", WorldFileError)
     spec = build(MapServerFile, data, "", source=str(path), error=WorldFileError)
-    image_path = Path(spec.image) if Path(spec.image).is_absolute() else path.parent / spec.image
+    image_path = map_server_image(path, spec.image)
     if image_path.suffix.lower() not in IMAGE_SUFFIXES:
         raise WorldFileError(str(path), "image", f"a PNG or PGM image (*{' or *'.join(IMAGE_SUFFIXES)})", spec.image)
     if not image_path.exists():

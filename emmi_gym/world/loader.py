@@ -36,6 +36,7 @@ from .images import (
     IMAGE_SUFFIXES,
     dungeon_occupancy,
     is_map_server_file,
+    map_server_image,
     map_server_occupancy,
     world_from_occupancy,
 )
@@ -90,6 +91,18 @@ def load_world(name_or_path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> WorldSpe
     ROS map_server map (its ``.yaml``) or a floor-plan image (``.png``/``.pgm``, DungeonMaps colour
     rules, ``pixel_size`` metres per pixel; see :mod:`emmi_gym.world.images`); a map of a shipped map set
     by its name in the set (``"dungeon_maps/test/img_10011.png"``) where no such file is in the working folder."""
+    path = world_path(name_or_path)
+    if path.suffix.lower() in IMAGE_SUFFIXES:
+        return world_from_occupancy(dungeon_occupancy(path, pixel_size))
+    data = read_yaml_file(path, "world file", WorldFileError)
+    if is_map_server_file(data):
+        return world_from_occupancy(map_server_occupancy(path, data))
+    return parse_world(data, source=path.name if str(name_or_path) in _builtin_files() else str(path))
+
+
+def world_path(name_or_path) -> Path:
+    """The file :func:`load_world` reads for ``name_or_path`` (a path, a map of a shipped map set, a built-in name);
+    ValueError for a name that is none of them."""
     name = str(name_or_path)
     path = Path(name)
     if not path.exists() and not path.is_absolute() and (worlds_data_root() / path).is_file():
@@ -100,12 +113,19 @@ def load_world(name_or_path, pixel_size: float = DEFAULT_PIXEL_SIZE) -> WorldSpe
             raise ValueError(f"unknown world {excerpt(name)}: give a path to a world file or map_server map (.yaml), "
                              f"an image ({'/'.join(IMAGE_SUFFIXES)}) or one of {sorted(builtin)}")
         path = builtin[name]
-    if path.suffix.lower() in IMAGE_SUFFIXES:
-        return world_from_occupancy(dungeon_occupancy(path, pixel_size))
-    data = read_yaml_file(path, "world file", WorldFileError)
-    if is_map_server_file(data):
-        return world_from_occupancy(map_server_occupancy(path, data))
-    return parse_world(data, source=path.name if name in builtin else str(path))
+    return path
+
+
+def world_files(name_or_path) -> dict[str, Path]:
+    """The files a world is read from, ``{what: path}``: ``"the world file"`` (:func:`world_path`) and, for a
+    map_server map, ``"the world's image"`` that its YAML file names; for a command that must not write over them."""
+    path = world_path(name_or_path)
+    files = {"the world file": path}
+    if path.suffix.lower() in YAML_SUFFIXES and path.is_file():
+        data = read_yaml_file(path, "world file", WorldFileError)
+        if is_map_server_file(data) and isinstance(data.get("image"), str):
+            files["the world's image"] = map_server_image(path, data["image"])
+    return files
 
 
 class _Reader:

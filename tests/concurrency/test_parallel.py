@@ -3,6 +3,8 @@ lane's check of its contract; its pools of worker processes are tested in tests/
 
 import os
 
+import pytest
+
 from emmi_gym.concurrency.parallel import run_in_processes
 
 
@@ -14,3 +16,31 @@ def test_one_worker_runs_every_job_of_a_generator_in_this_process_in_order():
 
 def test_a_single_job_runs_in_this_process_whatever_the_workers_asked():
     assert run_in_processes(lambda _: os.getpid(), [7], workers=8, progress=False) == [os.getpid()]
+
+
+class Sleeper:
+    """An actor's object whose call makes no progress (it never beats) while it sleeps."""
+
+    def sleep(self, seconds: float) -> float:
+        import time
+
+        time.sleep(seconds)
+        return seconds
+
+
+@pytest.mark.slow
+def test_a_call_silent_past_the_notice_says_what_is_waited_for_and_then_ends(monkeypatch):
+    from emmi_gym.concurrency import parallel
+
+    monkeypatch.setattr(parallel, "SILENCE_NOTICE", 0.5)  # 60 s by default, below worker_timeout's 600 s
+    actor = parallel.ProcessActor("rollout worker 0", Sleeper)
+    try:
+        actor.submit("sleep", 0.0)
+        assert actor.result(heartbeat_timeout=30.0) == 0.0
+        actor.submit("sleep", 2.0)
+        with pytest.warns(UserWarning, match=r"rollout worker 0 \(process \d+\) has made no progress for 0\.5 s: "
+                                             r"waiting for its reply to sleep, up to 30 s without progress "
+                                             r"\(worker_timeout\) before the run stops"):
+            assert actor.result(heartbeat_timeout=30.0) == 2.0
+    finally:
+        actor.close(1.0)

@@ -361,3 +361,71 @@ def test_replay_options_name_themselves_before_any_work(tmp_path, capsys, option
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert expected.format(file=file) in err and "run.log" not in err
+
+
+def test_replay_refuses_a_folder_in_use_unless_overwritten(tmp_path, capsys):
+    from emmi_gym.tools.cli import main
+
+    log = tmp_path / "short.log"
+    log.write_text("\n".join(flaser(0.5 * k, float(k)) for k in range(4)) + "\n")
+    out = tmp_path / "out"
+    replay = ["replay", str(log), "--max-range", "8", "--particles", "2", "--out", str(out), "--quiet"]
+    assert main(replay) == 0
+    (out / "notes.txt").write_text("mine")
+    before = {path: path.read_bytes() for path in out.iterdir()}
+    with pytest.raises(SystemExit) as exit_info:
+        main(replay)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert f"{out} is not empty (it holds best_map.png," in err and "replace it with --overwrite" in err
+    assert "--resume" not in err and {path: path.read_bytes() for path in out.iterdir()} == before
+    (out / "best_trajectory.tum").write_text("an earlier replay's")
+    assert main([*replay, "--overwrite"]) == 0
+    assert (out / "notes.txt").read_text() == "mine" and (out / "metrics.csv").exists()
+    assert "an earlier replay's" not in (out / "best_trajectory.tum").read_text()
+
+
+def map_server_world(folder):
+    """A map_server map of a walled 4 m room, ``room_map.yaml`` and ``.pgm`` in ``folder`` (as ``record --out
+    room.log`` names its map): a world to record in."""
+    from emmi_gym.formats.map_server import write_map_server
+    from emmi_gym.geometry.grid import GridGeometry
+
+    values = np.zeros((40, 40), dtype=np.int8)
+    values[[0, -1], :] = values[:, [0, -1]] = 100
+    return write_map_server(folder / "room_map.yaml", values, GridGeometry(0.1, 0.0, 0.0, 40, 40))
+
+
+def test_record_refuses_to_write_over_its_world_or_one_output_over_another(tmp_path, capsys):
+    from emmi_gym.tools.cli import main
+    from emmi_gym.world.loader import world_path
+
+    world = tmp_path / "w.yaml"
+    world.write_bytes(world_path("loop_corridor").read_bytes())
+    (tmp_path / "link.log").symlink_to(world)
+    room = map_server_world(tmp_path)
+    before = {path: path.read_bytes() for path in tmp_path.iterdir() if path.is_file()}
+    for argv, says in (
+        ([str(world), "--out", str(world)], f"--out {world}: expected a file apart from the world file {world}"),
+        ([str(world), "--out", str(tmp_path / "link.log")], "which it is (links resolved) and would be overwritten"),
+        ([str(room), "--out", str(tmp_path / "room.log")],
+         f"the map of --out {tmp_path / 'room_map.yaml'}: expected a file apart from the world file {room}"),
+        ([str(world), "--out", str(tmp_path / "run.log"), "--bag-out", str(tmp_path / "run.log")],
+         f"--bag-out {tmp_path / 'run.log'}: expected a file apart from --out {tmp_path / 'run.log'}, which it is "
+         "(links resolved) and would be written over; give another --bag-out"),
+    ):
+        with pytest.raises(SystemExit) as exit_info:
+            main(["record", *argv, "--route", "explore", "--beams", "30"])
+        assert exit_info.value.code == 2
+        err = capsys.readouterr().err
+        assert says in err and len(err.strip().splitlines()) == 1, err
+    assert {path: path.read_bytes() for path in tmp_path.iterdir() if path.is_file()} == before
+    assert not (tmp_path / "run.log").exists()
+
+
+def test_odometry_timestamps_that_go_backwards_are_reported_with_their_lines():
+    odometry = [f"ODOM {0.1 * k!r} 0 0 0 0 0 {t!r} host {t!r}" for k, t in enumerate([1.0, 2.0, 1.5, 3.0])]
+    assert carmen.parse_lines(["# header", *odometry]).report()[-1] == (
+        "odometry timestamps go backwards 1 time(s), first at line 4 (1.5 after 2.0 at line 3): times and rates "
+        "from them are not trustworthy")
+    assert carmen.parse_lines(odometry[:1] * 3).timing == []  # odometry at one time: no sentence of its own

@@ -316,3 +316,31 @@ def test_record_writes_the_world_map_and_a_bag_of_the_run(tmp_path, capsys):
     read = read_bag(bag, BagTopics(truth="/truth"))
     assert len(read.of_type(carmen.LaserRecord)) == len(carmen.read_log(log).of_type(carmen.LaserRecord))
     assert not read.warnings
+
+
+def test_odometry_whose_stamps_go_back_is_one_line_naming_the_message(tmp_path):
+    """The bag's order is the odometry's: a stamp that jumps back would reorder the path the replay follows."""
+    path = write_bag(tmp_path / "back", [
+        ("/tf", TF_MESSAGE, 0.0, lambda s: tf_message(s, 0.0, ("odom", "base_link", 0.0, 0.0, 0.0))),
+        ("/tf", TF_MESSAGE, 1.0, lambda s: tf_message(s, 1.0, ("odom", "base_link", 1.0, 0.0, 0.0))),
+        ("/tf", TF_MESSAGE, 2.0, lambda s: tf_message(s, 0.5, ("odom", "base_link", 2.0, 0.0, 0.0))),
+        ("/scan", LASER_SCAN, 0.5, lambda s: scan_message(s, 0.5, [1.0, 2.0])),
+    ])
+    assert (f"{path}: field '/tf': expected odometry whose stamps never go back in the bag's order (message 2 is "
+            "stamped 1.0 s), got 'message 3 at 0.5 s'") in _one_line_exit_2(
+        path, "--out", tmp_path / "out")
+
+
+@pytest.mark.parametrize("role, value", [("odom", math.nan), ("odom", math.inf), ("truth", math.nan)])
+def test_odometry_or_truth_that_is_not_finite_is_one_line_naming_the_message(tmp_path, role, value):
+    def odometry(t, x):
+        return lambda s: odometry_message(s, ns(t), "odom", "base_link", (x, 0.0, 0.0))
+
+    messages = [("/odom", ODOMETRY, 0.0, odometry(0.0, 0.0)), ("/truth", ODOMETRY, 0.0, odometry(0.0, 0.0)),
+                ("/scan", LASER_SCAN, 0.5, lambda s: scan_message(s, 0.5, [1.0, 2.0])),
+                (f"/{role}", ODOMETRY, 1.0, odometry(1.0, value))]
+    path = write_bag(tmp_path / "odd", messages)
+    what = "odometry" if role == "odom" else "ground-truth"
+    assert (f"{path}: field '/{role}': expected {what} poses of finite x, y and orientation (message 2: x "
+            f"{value!r}, y 0.0, yaw 0.0)") in _one_line_exit_2(path, "--odom", "/odom", "--truth", "/truth", "--out",
+                                                               tmp_path / "out")

@@ -80,6 +80,29 @@ def add_quiet(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+#: What the help of a command that loads model files says of them.
+MODEL_FILES_RUN_CODE = ("model files are zips of pickles (Stable-Baselines3's format), which can run code: "
+                        "one whose pickles name anything but classes of SB3, torch, numpy, gymnasium and "
+                        "emmi_gym is refused unless --trust-model")
+
+
+def add_trust_model(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--trust-model``, in every command that loads model files (``what``: which): load them as SB3 does,
+    whatever their pickles name (:func:`trust_models`)."""
+    parser.add_argument("--trust-model", action="store_true",
+                        help=f"trust {what}: load it even if its pickles name code outside SB3, torch, numpy, "
+                             "gymnasium and emmi_gym (a model file can run code: give it only files you trust)")
+
+
+def trust_models(args: argparse.Namespace, paths) -> None:
+    """With ``--trust-model``, trust the model files at ``paths`` (folders: those under them; None left out), in this
+    process and those it starts."""
+    if args.trust_model:
+        from ..training.run_folders.model_files import trust_model_files
+
+        trust_model_files([path for path in paths if path is not None])
+
+
 def add_seed_range(parser: argparse.ArgumentParser, seeds: int, first_seed: int = 0, least: int = 1) -> None:
     """``--seeds N`` and ``--first-seed S``, in every command the seeds S, S + 1, ..., S + N - 1 (``--seeds``
     is a count everywhere; ``least`` the fewest the command takes)."""

@@ -12,7 +12,8 @@ from . import arguments
 
 def add_parser(subparsers) -> None:
     bench = subparsers.add_parser("benchmark", help="train agents per reward variant and compare them, and the "
-                                                    "scripted baselines, under the same ground-truth metrics")
+                                                    "scripted baselines, under the same ground-truth metrics",
+                                  epilog=arguments.MODEL_FILES_RUN_CODE)
     bench.add_argument("--config", default="agents/ppo_emmi.yaml",
                        help="the agent configuration whose reward is varied (default agents/ppo_emmi.yaml)")
     bench.add_argument("--rewards", nargs="+", default=["emmi", "pose_entropy", "joint_entropy", "coverage"],
@@ -48,6 +49,7 @@ def add_parser(subparsers) -> None:
     bench.add_argument("--out", default="benchmark_out",
                        help="folder for the agents' run folders, the episodes, summary and figures (default "
                             "benchmark_out; run again into it, finished agents are evaluated, unfinished ones resumed)")
+    arguments.add_trust_model(bench, "the --init-from model")
     arguments.add_quiet(bench)
     bench.set_defaults(func=run)
 
@@ -66,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if bad:
         raise ValueError(f"--rewards: unknown {bad}; choose from {list(REWARDS)}")
     output_folder(args.out)
+    arguments.trust_models(args, [args.init_from])
     config = load_agent_config(args.config)
     if args.timesteps is None:
         args.timesteps = config.total_timesteps

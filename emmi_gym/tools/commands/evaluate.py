@@ -13,7 +13,7 @@ from . import arguments
 def add_parser(subparsers) -> None:
     ev = subparsers.add_parser("evaluate", help="run a trained model on held-out episodes: return and "
                                                 "ground-truth metrics, beside the scripted baselines on the same "
-                                                "episodes if asked")
+                                                "episodes if asked", epilog=arguments.MODEL_FILES_RUN_CODE)
     ev.add_argument("model", nargs="?", default=None,
                     help="model .zip written by 'emmi-gym train' (config.yaml beside it), or --pretrained")
     ev.add_argument("--pretrained", default=None, metavar="NAME", help="a trained agent shipped with the package")
@@ -38,6 +38,7 @@ def add_parser(subparsers) -> None:
     arguments.add_quiet(ev)
     ev.add_argument("--video", default=None, metavar="DIR", help="record every episode (gymnasium RecordVideo)")
     arguments.add_torch_threads(ev, "1: the env's kernels need the cores")
+    arguments.add_trust_model(ev, "the model")
     ev.set_defaults(func=run)
 
 
@@ -52,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     if args.video is not None:
         output_folder(args.video, "--video")
     model, name = _model_to_evaluate(args)
+    arguments.trust_models(args, [model])
     config = RunFolder.config_of_model(model)  # loaded once: checking it makes the env
     if args.world is not None or args.baselines:
         return _evaluate_beside_baselines(args, model, name, config)

@@ -36,15 +36,22 @@ def run(args: argparse.Namespace) -> int:
     from ...formats.carmen import read_log
     from ...formats.map_server import write_map_server
     from ...formats.ros_writers import check_new_bag, write_log_bag
-    from ...inputs.user_paths import output_file
+    from ...inputs.user_paths import check_outputs_apart, output_file
     from ...world import LaserConfig, Simulator, drive_route, load_world, write_carmen
     from ...world.ground_truth import FREE, OCCUPIED, rasterise
+    from ...world.loader import world_files
     from ..experiments.map_outputs import write_path_csv
 
     out = output_file(args.out)
     if args.bag_out is not None:
         check_new_bag(args.bag_out)
     world = load_world(args.world)
+    outputs = {"--out": out, "the map of --out": out.with_name(f"{out.stem}_map.yaml"),
+               "the map image of --out": out.with_name(f"{out.stem}_map.pgm"),
+               "the path of --out": out.with_name(f"{out.stem}_path.csv")}
+    if args.bag_out is not None:
+        outputs["--bag-out"] = args.bag_out
+    check_outputs_apart(outputs, world_files(args.world))  # before the route is driven
     waypoints = []
     for name in args.route:
         route = world.route(name)
@@ -54,8 +61,8 @@ def run(args: argparse.Namespace) -> int:
     write_carmen(rec, sim, out)
     truth = rasterise(world, args.map_resolution)
     values = np.select([truth.grid == FREE, truth.grid == OCCUPIED], [0, 100], -1).astype(np.int8)
-    files = [write_map_server(out.with_name(f"{out.stem}_map.yaml"), values, truth.geometry),
-             write_path_csv(out.with_name(f"{out.stem}_path.csv"), rec.times, rec.true_poses)]
+    files = [write_map_server(outputs["the map of --out"], values, truth.geometry),
+             write_path_csv(outputs["the path of --out"], rec.times, rec.true_poses)]
     if args.bag_out is not None:
         files.append(write_log_bag(read_log(out), args.bag_out))
     drift = float(np.hypot(*(rec.true_poses[-1, :2] - rec.odometry_poses[-1, :2])))

@@ -44,6 +44,9 @@ def add_parser(subparsers) -> None:
     rep.add_argument("--out", default="replay_out",
                      help="folder for metrics.csv, the PNGs, map.yaml/.pgm, expected_information.yaml/.pgm and "
                           "best_path.csv (default replay_out)")
+    rep.add_argument("--overwrite", action="store_true",
+                     help="write into an --out folder that is not empty, replacing an earlier replay's files there "
+                          "(without it such a folder is refused)")
     rep.add_argument("--bag-out", default=None, metavar="FOLDER",
                      help="also write /map, /expected_information (OccupancyGrid) and /path (Path) as a ROS 2 bag "
                           "(sqlite3) in this new folder")
@@ -61,9 +64,12 @@ def run(args: argparse.Namespace) -> int:
     from ...formats.ros_writers import check_new_bag
     from ...inputs.user_paths import output_folder
     from ...slam import RBPFConfig
-    from ..experiments.map_outputs import write_map_files, write_replay_bag
+    from ..experiments.map_outputs import REPLAY_FILES, write_map_files, write_replay_bag
     from ..experiments.replay import replay, tum_problem, tum_warning, write_outputs
+    from ..training.run_folders import RunFolder
 
+    folder = RunFolder(args.out, REPLAY_FILES)  # the rule of train and clone: a folder in use is refused
+    folder.check_new(args.overwrite, resumable=False, inputs={"the log": args.log})
     output_folder(args.out)  # before the run, which would otherwise be lost at its end
     if args.bag_out is not None:
         check_new_bag(args.bag_out)
@@ -90,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.log}: {exc}") from None
     if not result.rows:
         raise ValueError(f"{args.log}: no scan could be used (none had odometry)")
+    if args.overwrite:  # once the log is read and replayed
+        folder.clear()
     files = write_outputs(result, args.out) | write_map_files(result, args.out)
     if args.bag_out is not None:
         files["bag"] = write_replay_bag(result, args.bag_out)

@@ -15,7 +15,8 @@ def add_parser(subparsers) -> None:
         "score-checkpoints", help="score every checkpoint of training runs on the same held-out episodes, in "
                                   "parallel: the learning curve of a run trained with eval.freq: 0",
         description="Writes checkpoint_scores.csv (a row per checkpoint: the mean of each ground-truth measure) "
-                    "and checkpoint_episodes.csv (every episode) into each run folder.")
+                    "and checkpoint_episodes.csv (every episode) into each run folder.",
+        epilog=arguments.MODEL_FILES_RUN_CODE)
     parser.add_argument("runs", nargs="+", type=Path, help="run folders of 'emmi-gym train'")
     parser.add_argument("--world", default=None, help="world, map set, folder or glob (default: the run's own)")
     parser.add_argument("--episodes", type=arguments.EPISODES, default=16, help="episodes per checkpoint (default 16)")
@@ -24,6 +25,7 @@ def add_parser(subparsers) -> None:
                              "choose a checkpoint, score it on seeds below that, e.g. 400000)")
     arguments.add_workers(parser)
     arguments.add_quiet(parser)
+    arguments.add_trust_model(parser, "the runs' checkpoints")
     parser.set_defaults(func=run)
 
 
@@ -35,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{run_dir}: {len(curve)} checkpoints x {args.episodes} episodes: wrote {run_dir / CURVE_FILE} and "
               f"{run_dir / EPISODES_FILE}\n{format_table(curve)}\n", flush=True)
 
+    arguments.trust_models(args, args.runs)
     score_runs(args.runs, OWN_WORLD if args.world is None else args.world, args.episodes, args.seed,
                workers=args.workers, progress=not args.quiet, report=report)
     return 0

@@ -9,7 +9,8 @@ from . import arguments
 
 
 def add_parser(subparsers) -> None:
-    tr = subparsers.add_parser("train", help="train an SB3 agent from a configuration in agents/")
+    tr = subparsers.add_parser("train", help="train an SB3 agent from a configuration in agents/",
+                               epilog=arguments.MODEL_FILES_RUN_CODE)
     tr.add_argument("config", help="agent configuration (.yaml), e.g. agents/ppo_emmi.yaml")
     tr.add_argument("--timesteps", type=arguments.integer(1), default=None, help="override total_timesteps")
     tr.add_argument("--seed", type=arguments.SEED, default=None, help="override seed")
@@ -29,6 +30,7 @@ def add_parser(subparsers) -> None:
                          "(copy it into a new run without training)")
     arguments.add_ray(tr, "run the env workers as Ray actors (vec_env: ray_workers, or ray for vec_env subproc "
                           "and dummy)")
+    arguments.add_trust_model(tr, "the --init-from model and, with --resume, the run's own")
     arguments.add_quiet(tr)
     arguments.add_torch_threads(tr, "1 beside rollout workers and env subprocesses; one per core when the envs run "
                               "in this process")
@@ -56,6 +58,12 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, vec_env="ray_workers" if config.vec_env in ROLLOUT_WORKERS else "ray")
     set_torch_threads(training_torch_threads(config) if args.torch_threads is None else args.torch_threads)
     out = args.out or output_folder(f"runs/{Path(args.config).stem}_seed{config.seed}")
+    arguments.trust_models(args, [args.init_from, out if args.resume else None])
+    finished = args.resume and not args.overwrite and args.init_from is None
+    trained = RunFolder(out).already_trained(config) if finished else None
+    if trained is not None:  # nothing is written: its model and records stay as they are
+        print(f"{out}: already trained to {trained} decisions; nothing to do (give a larger --timesteps to train on)")
+        return 0
     print(f"training {config.algorithm} on {config.env_id} ({config.env_kwargs}) for {config.total_timesteps} "
           f"steps with {config.n_envs} env(s), seed {config.seed}, into {out} (TensorBoard: tensorboard --logdir "
           f"{out}/tb)")

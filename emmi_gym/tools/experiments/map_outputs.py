@@ -20,6 +20,11 @@ from ...geometry.grid import GridGeometry
 from .replay import ReplayResult, explored_extent
 from .report import write_csv
 
+#: What ``emmi-gym replay`` writes into its ``--out`` folder (:func:`~.replay.write_outputs` and
+#: :func:`write_map_files`): all that its ``--overwrite`` removes.
+REPLAY_FILES = ("metrics.csv", "metrics.png", "expected_map.png", "best_map.png", "best_trajectory.tum", "map.yaml",
+                "map.pgm", "expected_information.yaml", "expected_information.pgm", "best_path.csv")
+
 
 def map_layers(result: ReplayResult) -> dict[str, tuple[np.ndarray, GridGeometry]]:
     """{"map": best particle's occupancy values, "expected_information": the expected map's information in

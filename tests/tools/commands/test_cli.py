@@ -104,3 +104,13 @@ def test_a_first_compile_says_how_many_kernels_are_compiled_until_the_count_stop
     with compile_progress(False, interval=0.1):
         time.sleep(0.3)
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("argv", [["evaluate"], ["train", "c.yaml"], ["benchmark"], ["score-checkpoints", "run"]])
+def test_the_commands_that_load_models_say_that_model_files_can_run_code(argv, capsys):
+    parser = build_parser()
+    assert parser.parse_args([*argv, "--trust-model"]).trust_model
+    with pytest.raises(SystemExit):
+        parser.parse_args([argv[0], "--help"])
+    shown = " ".join(capsys.readouterr().out.split())
+    assert "zips of pickles (Stable-Baselines3's format), which can run code" in shown and "--trust-model" in shown

@@ -433,3 +433,50 @@ def test_jobs_from_a_generator_run_in_worker_processes():
 
     jobs = (-k for k in range(40))  # a generator: taken a few jobs per worker at a time
     assert sorted(run_in_processes(abs, jobs, total=40, workers=2, progress=False)) == list(range(40))
+
+
+class _MakesAFolder:
+    """A pickle that, unpickled, makes the folder ``path``: code a model file runs."""
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def __reduce__(self):
+        import os
+
+        return os.mkdir, (self.path,)
+
+
+def test_a_model_whose_pickles_name_other_code_is_refused_unless_trusted(tmp_path, saved_model, monkeypatch):
+    import base64
+    import pickle
+
+    from emmi_gym.tools.training.run_folders.model_files import TRUST_VARIABLE, load_model_file, trust_model_files
+
+    monkeypatch.delenv(TRUST_VARIABLE, raising=False)
+    ran = tmp_path / "ran"
+    data = json.loads(saved_model["data"])
+    data["lr_schedule"] = {":type:": "<class 'function'>",
+                           ":serialized:": base64.b64encode(pickle.dumps(_MakesAFolder(ran), protocol=4)).decode()}
+    model = write_zip(tmp_path / "model.zip", dict(saved_model, data=json.dumps(data)))
+    with pytest.raises(ModelFileError, match=rf"{model}: field 'data\.lr_schedule': expected a pickle naming only "
+                                             r"classes of stable_baselines3, .*pass --trust-model.*got "
+                                             r"'(posix|os)\.mkdir'"):
+        load_model_file(model, "PPO")
+    assert not ran.exists()
+    trust_model_files([tmp_path])  # what --trust-model does: SB3 unpickles it, and the pickle runs
+    load_model_file(model, "PPO")
+    assert ran.is_dir()
+
+
+def test_the_shipped_agents_load_with_nothing_trusted_and_sb3_unpickles_none(monkeypatch):
+    from stable_baselines3.common import save_util
+
+    from emmi_gym import pretrained
+    from emmi_gym.tools.training.run_folders.model_files import TRUST_VARIABLE
+
+    monkeypatch.delenv(TRUST_VARIABLE, raising=False)
+    monkeypatch.setattr(save_util.cloudpickle, "loads", lambda *_: pytest.fail("SB3 unpickled a member itself"))
+    for name in pretrained.names():
+        assert pretrained.load(name).policy is not None
+

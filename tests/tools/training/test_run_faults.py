@@ -68,6 +68,15 @@ def test_resume_below_what_is_trained_is_refused_and_the_folder_kept(run, capsys
 
 
 @pytest.mark.slow
+def test_resuming_a_finished_run_says_there_is_nothing_to_do_and_writes_nothing(run, capsys):
+    folder, config = run
+    before = files_of(folder)
+    code, out, _ = cli(["train", config, "--resume", "--timesteps", "32", "--out", folder, "--quiet"], capsys)
+    assert code == 0 and f"{folder}: already trained to 32 decisions; nothing to do" in out and "trained 32" not in out
+    assert files_of(folder) == before
+
+
+@pytest.mark.slow
 def test_resume_skips_a_damaged_model_for_the_newest_whole_checkpoint(run, capsys):
     folder, config = run
     with zipfile.ZipFile(folder / "model.zip") as archive:
@@ -79,6 +88,21 @@ def test_resume_skips_a_damaged_model_for_the_newest_whole_checkpoint(run, capsy
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint .*model.zip"):
         code, out, _ = cli(["train", config, "--resume", "--timesteps", "48", "--out", folder, "--quiet"], capsys)
     assert code == 0 and f"continuing from {folder / 'checkpoints' / 'model_16_steps.zip'} (16 decisions)" in out
+
+
+@pytest.mark.slow
+def test_resume_of_a_run_whose_config_names_another_algorithm_is_refused_and_the_folder_kept(run, tmp_path, capsys):
+    folder, _ = run
+    dqn = tmp_path / "dqn.yaml"
+    dqn.write_text(yaml.safe_dump(config_dict("DQN", env_extra={"velocity_actions": "discrete"}, timesteps=24,
+                                              hyper={"buffer_size": 500, "learning_starts": 8})))
+    (folder / "config.yaml").write_text(dqn.read_text())  # the PPO run's configuration replaced by a DQN one
+    before = files_of(folder)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
+        code, out, err = cli(["train", dqn, "--resume", "--timesteps", "24", "--out", folder, "--quiet"], capsys)
+    assert code == 2 and f"none of the 3 model files of the run in {folder} is a whole DQN model" in err
+    assert "--overwrite" in err and "fresh model" not in out and len(err.strip().splitlines()) == 1
+    assert files_of(folder) == before
 
 
 @pytest.mark.slow

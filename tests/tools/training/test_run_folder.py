@@ -104,3 +104,76 @@ def test_the_latest_loadable_checkpoint_skips_a_damaged_one(tmp_path, config, mo
         assert folder.latest_checkpoint(config.algorithm) == folder.checkpoint_path(32)
     with pytest.warns(UserWarning, match="skipping the damaged checkpoint"):
         assert folder.plan(config, resume=True).model == folder.checkpoint_path(32)
+
+
+def files_of(folder: RunFolder) -> dict:
+    return {path: path.read_bytes() for path in sorted(folder.path.rglob("*")) if path.is_file()}
+
+
+def test_resume_refuses_a_run_whose_models_are_of_another_algorithm_than_its_config(tmp_path, model):
+    dqn = parse_agent_config(config_dict("DQN", env_extra={"velocity_actions": "discrete"},
+                                         hyper={"buffer_size": 500, "learning_starts": 32}, timesteps=64,
+                                         checkpoint_freq=16))
+    folder = RunFolder(tmp_path)
+    folder.write_config(dqn)  # a PPO run whose config.yaml was replaced by a DQN one
+    save(model, folder, 16, 32)
+    model.save(folder.model_path)
+    before = files_of(folder)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"), \
+            pytest.raises(RunError, match=rf"--resume: none of the 3 model files of the run in {tmp_path} is a whole "
+                                          rf"DQN model, as its config\.yaml names \(the last: {folder.model_path}: "
+                                          r"expected a DQN model.*a PPO or A2C policy\).*--overwrite"):
+        folder.plan(dqn, resume=True)
+    assert files_of(folder) == before
+
+
+def test_resume_refuses_a_run_whose_every_model_file_is_damaged(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)
+    save(model, folder, 16, 32)
+    model.save(folder.model_path)
+    for path in [folder.checkpoint_path(16), folder.checkpoint_path(32), folder.model_path]:
+        path.write_bytes(path.read_bytes()[:5000])
+    before = files_of(folder)
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"), \
+            pytest.raises(RunError, match=rf"none of the 3 model files of the run in {tmp_path} is a whole PPO model.*"
+                                          rf"{folder.model_path} \(not a whole zip archive\).*Start the run over with "
+                                          r"--overwrite"):
+        folder.plan(config, resume=True)
+    assert files_of(folder) == before
+
+
+def test_resume_of_a_run_stopped_before_its_first_checkpoint_starts_a_fresh_model(tmp_path, config):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)  # nothing saved yet: nothing of the run would be lost
+    assert folder.plan(config, resume=True).model is None
+
+
+def test_a_finished_run_is_already_trained_to_its_budget_and_not_to_a_larger_one(tmp_path, config, model):
+    folder = RunFolder(tmp_path)
+    folder.write_config(config)
+    save(model, folder, 16)
+    model.num_timesteps = config.total_timesteps
+    try:
+        model.save(folder.model_path)
+    finally:
+        model.num_timesteps = 0
+    assert folder.already_trained(config) == config.total_timesteps
+    assert folder.already_trained(replace(config, total_timesteps=128)) is None  # decisions to train
+    with pytest.raises(RunError, match="is not the configuration of the run"):
+        folder.already_trained(replace(config, seed=4))
+    save(model, folder, 96)  # a checkpoint past the budget: plan says what is wrong
+    assert folder.already_trained(config) is None
+
+
+def test_a_run_whose_only_checkpoint_is_damaged_is_named_damaged_not_without_checkpoints(tmp_path, config, model):
+    from emmi_gym.tools.training.run_folders.model_files import ModelFileError
+
+    folder = RunFolder(tmp_path)
+    save(model, folder, 16)
+    folder.checkpoint_path(16).write_bytes(folder.checkpoint_path(16).read_bytes()[:-200])
+    with pytest.warns(UserWarning, match="skipping the damaged checkpoint"), \
+            pytest.raises(ModelFileError, match=rf"{tmp_path}: expected a run with a whole checkpoint or model; its 1 "
+                                                rf"model file\(s\) are all damaged, the last: "
+                                                rf"{folder.checkpoint_path(16)}: expected a Stable-Baselines3 model"):
+        folder.whole_checkpoints()

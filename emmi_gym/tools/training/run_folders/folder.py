@@ -258,6 +258,11 @@ class RunFolder:
         """The decisions the run's ``model.zip`` holds; None if the run has none (it has not finished)."""
         return saved_decisions(self.model_path) if self.model_path.is_file() else None
 
+    def model_files(self) -> list[Path]:
+        """The run's model files as their names say, whole or not: its checkpoints, fewest decisions first, then
+        ``model.zip`` if there is one."""
+        return [path for _, path in self.checkpoints()] + ([self.model_path] if self.model_path.exists() else [])
+
     def latest_checkpoint(self, algorithm: str | None = None) -> Path | None:
         """The checkpoint to continue the run from: of the final ``model.zip`` and the checkpoints that are whole
         (a damaged one is skipped with a warning; with ``algorithm``, so is one that
@@ -281,10 +286,45 @@ class RunFolder:
             finished_at = saved_decisions(self.model_path)
             if finished_at > (found[-1][0] if found else 0):
                 found.append((finished_at, self.model_path))
+        unloadable = None if found else self._unloadable()
+        if unloadable is not None:
+            raise ModelFileError(str(self.path), "", f"a run with a whole checkpoint or model; its {unloadable[0]} "
+                                 f"model file(s) are all damaged, the last: {unloadable[1]}")
         if not found:
             raise FileNotFoundError(f"no checkpoint in {self.checkpoint_dir}: was {self.path} written by "
                                     "'emmi-gym train'?")
         return found
+
+    def _unloadable(self, algorithm: str | None = None) -> tuple[int, str] | None:
+        """Where the run saved model files and none was found whole (of ``algorithm``): how many, and what is wrong
+        with the last (``model.zip``, else the checkpoint of the most decisions); None where it saved none."""
+        files = self.model_files()
+        if not files:
+            return None
+        return len(files), _model_problem(files[-1], algorithm) or f"{files[-1]}: not a model the run can go on from"
+
+    def already_trained(self, config: AgentConfig) -> int | None:
+        """The decisions of the run's whole ``model.zip`` if resuming it with ``config`` would train none: the run
+        finished ``config.total_timesteps`` and holds no checkpoint past them; None otherwise (and where
+        :meth:`plan` is to say what is wrong). Refuses, as :meth:`plan` does, a ``config`` that is not the run's."""
+        self.check_resumable(config)
+        if not self.model_path.is_file() or _model_problem(self.model_path, config.algorithm) is not None:
+            return None
+        finished = saved_decisions(self.model_path)
+        past = [decisions for decisions, _ in self.checkpoints() if decisions > finished]
+        return finished if finished == config.total_timesteps and not past else None
+
+    def check_some_model_loads(self, algorithm: str) -> None:
+        """Refuse to resume a run that saved model files of which none is a whole model of ``algorithm`` (its
+        ``config.yaml``'s): a :class:`RunError` naming the folder and what is wrong with the last file, and how to
+        start over; a run that saved none (it stopped before its first checkpoint) passes."""
+        unloadable = self._unloadable(algorithm)
+        if unloadable is not None:
+            raise RunError(
+                f"--resume: none of the {unloadable[0]} model files of the run in {self.path} is a whole {algorithm} "
+                f"model, as its {self.config_path.name} names (the last: {unloadable[1]}); nothing was changed. Start "
+                "the run over with --overwrite (which removes its files), or give another --out"
+            )
 
     @classmethod
     def check_init_from(cls, path, config: AgentConfig, allow_no_training: bool = False) -> WarmStart:
@@ -336,11 +376,15 @@ class RunFolder:
 
     def _resumed(self, config: AgentConfig) -> RunStart:
         """Where the run in the folder goes on with ``config`` (:meth:`plan` with ``resume``): its latest loadable
-        checkpoint, or the model it started from if it stopped before its first checkpoint, or a fresh model."""
+        checkpoint, or, if it stopped before its first checkpoint (it saved no model file), the model it started
+        from or a fresh model. A run whose model files all fail to load (damaged, or of another algorithm than its
+        ``config.yaml`` names) is refused (:meth:`check_some_model_loads`): it never starts again from scratch."""
         self.check_resumable(config)
         record = self.record() or {}
         init_path = Path(record["init_from"]) if record.get("init_from") is not None else None
         checkpoint = self.latest_checkpoint(config.algorithm)
+        if checkpoint is None:
+            self.check_some_model_loads(config.algorithm)
         if checkpoint is None and init_path is not None:  # stopped before its first checkpoint: from its start again
             checkpoint = self.check_init_from(init_path, config, allow_no_training=True).path
         elif checkpoint is not None:
@@ -352,28 +396,33 @@ class RunFolder:
         return RunStart(checkpoint, init_path, int(record.get("init_decisions", 0)), record)
 
 
-def _is_whole_checkpoint(path: Path, algorithm: str | None = None) -> bool:
-    """Whether a checkpoint is a zip archive whose members all read back (a save cut short by a kill is not) and a
-    model (with ``algorithm``: a model of it, as
-    :func:`~emmi_gym.tools.training.run_folders.model_files.check_model_file` checks); a damaged one is skipped with a
-    warning."""
+def _model_problem(path: Path, algorithm: str | None = None) -> str | None:
+    """What is wrong with a model file of a run, in words naming it: not a zip archive whose members all read back
+    (a save cut short by a kill is not), or not a model (with ``algorithm``: not a model of it, as
+    :func:`~emmi_gym.tools.training.run_folders.model_files.check_model_file` checks); None if it is whole."""
     try:
         with zipfile.ZipFile(path) as archive:
             whole = archive.testzip() is None
     except (zipfile.BadZipFile, OSError):
         whole = False
     if not whole:
-        warnings.warn(f"skipping the damaged checkpoint {path} (not a whole zip archive)", stacklevel=3)
-        return False
+        return f"{path} (not a whole zip archive)"
     try:
         if algorithm is None:
             saved_decisions(path)
         else:
             check_model_file(path, algorithm)
     except ModelFileError as exc:
-        warnings.warn(f"skipping the damaged checkpoint {exc}", stacklevel=3)
-        return False
-    return True
+        return str(exc)
+    return None
+
+
+def _is_whole_checkpoint(path: Path, algorithm: str | None = None) -> bool:
+    """Whether a checkpoint is whole (:func:`_model_problem`); a damaged one is skipped with a warning."""
+    problem = _model_problem(path, algorithm)
+    if problem is not None:
+        warnings.warn(f"skipping the damaged checkpoint {problem}", stacklevel=3)
+    return problem is None
 
 
 def _check_model_fits(path, config: AgentConfig, what: str) -> int:

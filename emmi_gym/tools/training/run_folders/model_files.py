@@ -8,6 +8,14 @@ zipfile never inflates a member past its declared size) are bounded, every membe
 checked (a damaged file is named as damaged, not as "not a zip file"), ``data`` must be JSON nested
 at most a hundred deep (deeper, Python's parser would end in a ``RecursionError``), the weights must
 be in torch's format, and the policy class ``data`` names must be one of the configured algorithm's.
+
+A model file can run code: SB3 saves the spaces, schedules and classes of ``data`` as pickles (cloudpickle),
+and unpickling calls whatever a pickle names. Here every pickle of ``data`` is unpickled before SB3 sees it
+(and handed to SB3 as its ``custom_objects``, so SB3 unpickles none itself) by an unpickler that refuses a
+pickle naming anything but classes of :data:`TRUSTED_PACKAGES`, builtins' plain types and the functions
+numpy's arrays and random generators are rebuilt with (:data:`REBUILDERS`); the weights are read by SB3
+with ``torch.load(weights_only=True)``. A file trusted (:func:`trust_model_files`: ``--trust-model``, or
+the paths in :data:`TRUST_VARIABLE`) is unpickled by SB3 as it is.
 """
 
 from __future__ import annotations
@@ -15,6 +23,7 @@ from __future__ import annotations
 import base64
 import binascii
 import io
+import os
 import pickle
 import zipfile
 import zlib
@@ -32,6 +41,24 @@ from ..config import ALGORITHMS, algorithm_class
 MAX_MODEL_BYTES = 256 * 2**20
 MAX_DATA_BYTES = 16 * 2**20
 MAX_MEMBERS = 64
+
+#: The packages whose classes a model's pickles may name (an untrusted model's: :func:`trust_model_files`).
+TRUSTED_PACKAGES = ("stable_baselines3", "sb3_contrib", "torch", "numpy", "gymnasium", "emmi_gym")
+#: The builtins a model's pickles may name: plain types.
+SAFE_BUILTINS = frozenset({"bool", "bytearray", "bytes", "complex", "dict", "float", "frozenset", "int", "list",
+                           "range", "set", "slice", "str", "tuple"})
+#: The functions (not classes) a model's pickles may name, ``(module, name)``: what rebuilds numpy's arrays, scalars
+#: and random generators (``numpy.core`` before numpy 2), the standard library's containers and objects.
+REBUILDERS = frozenset({
+    *((f"numpy.{core}.multiarray", name) for core in ("_core", "core") for name in ("_reconstruct", "scalar")),
+    *((f"numpy.{core}.numeric", "_frombuffer") for core in ("_core", "core")),
+    *(("numpy.random._pickle", name) for name in ("__generator_ctor", "__bit_generator_ctor", "__randomstate_ctor")),
+    ("numpy.random.bit_generator", "__pyx_unpickle_SeedSequence"),
+    ("collections", "OrderedDict"), ("collections", "deque"), ("copyreg", "_reconstructor"),
+})
+#: The variable that names trusted model files (or folders of them), separated by ``os.pathsep``; what
+#: ``--trust-model`` sets, so that the processes a command starts trust them too.
+TRUST_VARIABLE = "EMMI_GYM_TRUSTED_MODELS"
 
 
 class ModelFileError(FieldError):
@@ -55,21 +82,67 @@ class _CurrentModules(pickle.Unpickler):
         return super().find_class(current_module(module), name)
 
 
-def _moved_classes(data: dict, where: str) -> dict:
-    """SB3 ``custom_objects`` for the entries of a model's ``data`` that name a class by a module from before 0.3.0:
-    each class from its module's current name, so that an older model loads without the deprecated aliases."""
-    moved = {}
+class _Refused(pickle.UnpicklingError):
+    """A pickle names a global that an untrusted model's may not (:class:`_TrustedNamesOnly`)."""
+
+
+class _TrustedNamesOnly(_CurrentModules):
+    """Unpickles only what names classes of :data:`TRUSTED_PACKAGES`, :data:`SAFE_BUILTINS` and :data:`REBUILDERS`
+    (looked up under their modules' current names); :class:`_Refused` for anything else, before it is imported."""
+
+    def find_class(self, module, name):
+        module = current_module(module)
+        named = f"{module}.{name}"
+        if module == "builtins":
+            if name not in SAFE_BUILTINS:
+                raise _Refused(named)
+        elif (module, name) not in REBUILDERS and module.split(".")[0] not in TRUSTED_PACKAGES:
+            raise _Refused(named)
+        found = super().find_class(module, name)
+        if not isinstance(found, type) and (module, name) not in REBUILDERS:
+            raise _Refused(f"{named} (a {type(found).__name__}, not a class)")
+        return found
+
+
+def trust_model_files(paths) -> None:
+    """Trust the model files at ``paths`` (a folder: every model under it) in this process and those it starts
+    (:data:`TRUST_VARIABLE`): SB3 unpickles them as they are, which can run any code they hold."""
+    trusted = [entry for entry in os.environ.get(TRUST_VARIABLE, "").split(os.pathsep) if entry]
+    os.environ[TRUST_VARIABLE] = os.pathsep.join([*trusted, *(str(Path(path).resolve()) for path in paths)])
+
+
+def is_trusted(path) -> bool:
+    """Whether the model file ``path`` is trusted (:func:`trust_model_files`), links resolved."""
+    resolved = Path(path).resolve()
+    return any(resolved.is_relative_to(Path(entry)) for entry in os.environ.get(TRUST_VARIABLE, "").split(os.pathsep)
+               if entry)
+
+
+def _data_objects(data: dict, where: str, trusted: bool) -> dict:
+    """SB3 ``custom_objects`` for the pickled entries of a model's ``data``: each unpickled by
+    :class:`_TrustedNamesOnly` (SB3 then unpickles none itself), or, for a ``trusted`` file, only those that name a
+    class by a module from before 0.3.0 (from its module's current name, so that an older model loads without the
+    deprecated aliases); :class:`ModelFileError` naming the file and entry for a pickle refused or unreadable."""
+    objects = {}
     for key, value in data.items():
-        if not (isinstance(value, dict) and isinstance(value.get("__module__"), str)
-                and current_module(value["__module__"]) != value["__module__"]):
+        if not (isinstance(value, dict) and ":serialized:" in value):
             continue
+        module = value.get("__module__")
+        moved = isinstance(module, str) and current_module(module) != module
+        if trusted and not moved:
+            continue
+        unpickler = _CurrentModules if trusted else _TrustedNamesOnly
         try:
-            moved[key] = _CurrentModules(io.BytesIO(base64.b64decode(value[":serialized:"]))).load()
+            objects[key] = unpickler(io.BytesIO(base64.b64decode(value[":serialized:"]))).load()
+        except _Refused as exc:
+            raise ModelFileError(where, f"data.{key}", "a pickle naming only classes of "
+                                 f"{', '.join(TRUSTED_PACKAGES)} and builtins' plain types (a model file can run "
+                                 "code: pass --trust-model to load one you trust)", str(exc)) from None
         except (KeyError, TypeError, ValueError, binascii.Error, EOFError, pickle.UnpicklingError, ImportError,
                 AttributeError) as exc:
-            raise ModelFileError(where, "data", f"its {key!r} as a class this package has "
+            raise ModelFileError(where, "data", f"its {key!r} as an object this package has "
                                  f"({type(exc).__name__}: {str(exc)[:200]})") from None
-    return moved
+    return objects
 
 
 def _policy_modules(algorithm: str) -> set[str]:
@@ -181,12 +254,14 @@ def load_model_file(path, algorithm: str, **kwargs):
     ``load`` (with ``env`` rollout workers, a model that collects from them). What SB3 still finds wrong, and
     weights that are not all finite (which would act as a torch error printing the tensors), are a
     :class:`ModelFileError` naming the file. A model saved before 0.3.0 loads its classes from their modules'
-    current names (:func:`current_module`)."""
+    current names (:func:`current_module`). Its pickles are unpickled by :func:`_data_objects` unless the file is
+    trusted (:func:`trust_model_files`)."""
     from ..callbacks import first_non_finite
     from ..rollout_workers import algorithm_for
 
     path, data = checked_model_data(path, algorithm)
-    kwargs["custom_objects"] = {**_moved_classes(data, str(path)), **(kwargs.get("custom_objects") or {})}
+    objects = _data_objects(data, str(path), is_trusted(path))
+    kwargs["custom_objects"] = {**objects, **(kwargs.get("custom_objects") or {})}
     try:
         model = algorithm_for(algorithm_class(algorithm), kwargs.get("env")).load(path, **kwargs)
     except (ValueError, TypeError, KeyError, AssertionError, AttributeError, RuntimeError, EOFError,

@@ -1,0 +1,75 @@
+"""Connecting to Ray: a Ray instance started on this machine binds the loopback address only."""
+
+import ipaddress
+from pathlib import Path
+
+import pytest
+
+from emmi_gym.concurrency.ray_cluster import LOOPBACK, ray_init_arguments
+
+
+def test_a_local_ray_instance_is_started_on_the_loopback_address_without_a_dashboard():
+    local = {"address": "local", "include_dashboard": False, "logging_level": "ERROR", "log_to_driver": False,
+             "_node_ip_address": "127.0.0.1"}
+    assert ray_init_arguments("local", {}) == local
+    assert ray_init_arguments(None, {}) == local  # no RAY_ADDRESS: a local instance, as --ray without an address
+    assert ray_init_arguments("local", {"RAY_ADDRESS": "10.0.0.2:6379"}) == local
+
+
+def test_joining_a_cluster_leaves_its_addresses_to_it():
+    joined = ray_init_arguments("10.0.0.2:6379", {})
+    assert joined["address"] == "10.0.0.2:6379" and "_node_ip_address" not in joined
+    assert not joined["include_dashboard"]
+    assert ray_init_arguments(None, {"RAY_ADDRESS": "10.0.0.2:6379"})["address"] is None  # Ray reads the variable
+
+
+def listening() -> set[tuple[str, int]]:
+    """The TCP sockets listening on this machine, ``(address, port)``, from ``/proc/net/tcp`` and ``tcp6``."""
+    found = set()
+    for name, size in (("tcp", 4), ("tcp6", 16)):
+        table = Path(f"/proc/net/{name}")
+        for row in table.read_text().splitlines()[1:] if table.exists() else []:
+            local, state = row.split()[1], row.split()[3]
+            if state != "0A":  # LISTEN
+                continue
+            address, port = local.split(":")
+            raw = bytes.fromhex(address)
+            raw = b"".join(raw[k:k + 4][::-1] for k in range(0, size, 4))  # each 32-bit word in host order
+            found.add((str(ipaddress.ip_address(raw)), int(port, 16)))
+    return found
+
+
+#: Run in a fresh interpreter: Ray reads its switch for one machine when it is imported (another test may have).
+LOCAL_INSTANCE = """
+import ipaddress, sys
+from test_ray_cluster import listening
+from emmi_gym.concurrency.ray_cluster import connect_ray
+before = listening()
+ray, started = connect_ray("local")
+try:
+    opened = listening() - before
+    nodes = [node["NodeManagerAddress"] for node in ray.nodes()]
+finally:
+    ray.shutdown()
+wide = [(host, port) for host, port in opened if not (lambda ip: (getattr(ip, "ipv4_mapped", None) or ip).is_loopback)(
+    ipaddress.ip_address(host))]
+print(started, nodes, len(opened), wide)
+"""
+
+
+@pytest.mark.slow
+def test_a_local_ray_instance_listens_on_the_loopback_address_only():
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("ray")
+    if not Path("/proc/net/tcp").exists():
+        pytest.skip("needs Linux's /proc/net/tcp")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
+    env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
+    done = subprocess.run([sys.executable, "-c", LOCAL_INSTANCE], capture_output=True, text=True, env=env,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    started, nodes, opened, wide = done.stdout.strip().splitlines()[-1].split(" ", 3)
+    assert (started, nodes, wide) == ("True", f"['{LOOPBACK}']", "[]") and int(opened) > 0, done.stdout
