@@ -83,6 +83,7 @@ class EmmiEnv(gym.Env):
         self._coverage = self._map_accuracy = self._oracle_accuracy = self._wall_consistency = self._ate = 0.0
         self._snapshot: Snapshot | None = None  # the measures the next step's reward compares with
         self._window: HumanWindow | None = None
+        self._watchers: list = []  # called after every filter update (watch_updates)
         self.action_type: ActionType = action_factory(self, cfg)
         self.action_space = self.action_type.space()
         self.observation_type: ObservationType = observation_factory(self, cfg)
@@ -105,7 +106,7 @@ class EmmiEnv(gym.Env):
         self.slam.reset(self.sim.odometry_pose, rng)
         self.action_type.reset()
         self.episode = RobotEpisode(self.sim, self.slam, self.laser_config.angles, self.config.max_sim_steps,
-                                    measure_updates=self.config.update_records)
+                                    measure_updates=self.config.update_records, watchers=tuple(self._watchers))
         if start_at == "decision":
             if "to_decision" not in world.routes:
                 raise ValueError(f"start_at='decision' needs a 'to_decision' route in world '{world.name}'")
@@ -192,6 +193,15 @@ class EmmiEnv(gym.Env):
     def _take_snapshot(self) -> Snapshot:
         m = self._metrics
         return Snapshot(m.emmi, m.pose_entropy, m.joint_entropy, self._coverage, m.map_information)
+
+    def watch_updates(self, watcher) -> None:
+        """Call ``watcher(slam, true_pose)`` after every filter update of the episodes from the next
+        reset on, the drive to the decision point included: the filter (its particles' poses, weights
+        and paths) and the true pose at that update. For measuring the filter against the truth
+        (:mod:`emmi_gym.tools.experiments.calibration`); the agent never sees what it reads."""
+        if not callable(watcher):
+            raise TypeError(f"watch_updates takes a callable (slam, true_pose), got {type(watcher).__name__}")
+        self._watchers.append(watcher)
 
     def action_masks(self) -> np.ndarray:
         """Which actions are valid now (for sb3-contrib's MaskablePPO): in waypoint mode the non-empty

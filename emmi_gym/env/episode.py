@@ -10,11 +10,16 @@ oracle map) for its scores.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..scoring.oracle import OracleMap
 from ..slam import RBPF
 from ..world import Simulator
+
+#: Called after every filter update with the filter and the true pose at that update.
+UpdateWatcher = Callable[[RBPF, np.ndarray], None]
 
 
 class RobotEpisode:
@@ -25,11 +30,15 @@ class RobotEpisode:
 
     ``max_sim_steps`` is the episode's budget of simulator steps (:meth:`out_of_time`); with
     ``measure_updates`` the metrics of every filter update are kept until
-    :meth:`take_update_records`. The first scan is fed at once, so the filter has a map from the start.
+    :meth:`take_update_records`; each of ``watchers`` is called as ``watcher(slam, true_pose)``
+    after every filter update (what a measurement of the filter against the truth reads). The
+    first scan is fed at once, so the filter has a map from the start.
     """
 
-    def __init__(self, sim: Simulator, slam: RBPF, angles: np.ndarray, max_sim_steps: int, measure_updates: bool):
+    def __init__(self, sim: Simulator, slam: RBPF, angles: np.ndarray, max_sim_steps: int, measure_updates: bool,
+                 watchers: tuple[UpdateWatcher, ...] = ()):
         self.sim, self.slam = sim, slam
+        self.watchers = watchers
         self.oracle = OracleMap(slam)
         self.angles = angles
         self.max_sim_steps = max_sim_steps
@@ -117,4 +126,6 @@ class RobotEpisode:
         self._n_true += 1
         if metrics is not None:
             self._update_records.append(metrics.measures())
+        for watcher in self.watchers:
+            watcher(self.slam, true_pose)
         self._filter_updated = True

@@ -114,14 +114,15 @@ def log_extent(poses: np.ndarray, max_range: float, resolution: float, drift_mar
 
 def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_range: float | None = None,
            seed: int = 0, progress: bool = False, grow_chunk: float = 10.0,
-           every_scan: bool = False) -> ReplayResult:
+           every_scan: bool = False, on_update=None) -> ReplayResult:
     """Feed every scan of ``log`` to a fresh RBPF.
 
     The grids cover the log's odometry (see :func:`log_extent`), so that the joint
     entropy is measured over one extent; they grow in chunks of ``grow_chunk`` metres
     only if the corrected path leaves even that. ``every_scan`` makes each scan an update
     (for logs of keyframes, GMapping's ``-linearUpdate 0 -angularUpdate 0``). Readings
-    at or beyond ``max_range`` are taken as no echo.
+    at or beyond ``max_range`` are taken as no echo. ``on_update(slam)``, if given, is called after
+    every update (the first scan's included), as :mod:`.calibration` reads the particles.
     """
     if max_range is not None and not (isinstance(max_range, (int, float)) and 0 < max_range < math.inf):
         raise ValueError(f"max_range must be a finite number of metres above 0, got {max_range!r}")
@@ -160,6 +161,8 @@ def replay(log: carmen.CarmenLog, config: RBPFConfig = RBPFConfig(), *, max_rang
         metrics = slam.process(pose, ranges, record.angles, record.timestamp)
         used += 1
         if metrics is not None:
+            if on_update is not None:
+                on_update(slam)
             rows.append(metrics)
             times.append(record.timestamp)
             odometry_at_update.append(pose)
