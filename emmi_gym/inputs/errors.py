@@ -35,6 +35,11 @@ class FieldError(ValueError):
         where = f"{source}: field '{field_path}'" if field_path else source
         super().__init__(f"{where}: expected {expected}{got_text}")
 
+    def __reduce__(self):
+        """Pickled by its fields, so that an error raised in a worker process reaches the parent whole."""
+        got = () if self.got is FieldError.NOTHING else (self.got,)
+        return type(self), (self.source, self.field, self.expected, *got)
+
 
 #: What the package's readers raise for bad input, and nothing else: a :class:`FieldError` (or one of its
 #: kinds: ``OptionError``, ``AgentConfigError``, ``ModelFileError``, ``DemonstrationsError``, ``CsvFileError``,

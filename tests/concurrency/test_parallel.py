@@ -44,3 +44,19 @@ def test_a_call_silent_past_the_notice_says_what_is_waited_for_and_then_ends(mon
             assert actor.result(heartbeat_timeout=30.0) == 2.0
     finally:
         actor.close(1.0)
+
+
+def _check_particles(particles: int) -> int:
+    from emmi_gym.env.config import make_config
+
+    return make_config(particles=particles).particles
+
+
+@pytest.mark.slow
+def test_an_input_error_in_a_worker_process_reaches_the_caller_whole():
+    """A bad option found in a worker process is raised here as itself, with its message (the pool is not
+    broken by an error it cannot unpickle)."""
+    from emmi_gym.inputs.validation import OptionError
+
+    with pytest.raises(OptionError, match="field 'particles': expected"):
+        run_in_processes(_check_particles, [3, -1], workers=2, progress=False)

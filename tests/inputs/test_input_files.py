@@ -130,3 +130,16 @@ def test_a_broken_file_named_by_an_env_option_names_the_option_and_the_file(tmp_
     with pytest.raises(AgentConfigError, match=r"agent\.yaml: field 'eval\.env_kwargs\.world': expected an option "
                                                r"naming a valid file \(.*text\.png: expected a PNG or PGM image"):
         load_agent_config(agent)
+
+
+def test_input_errors_pickle_whole():
+    """Errors cross process boundaries (worker pools, Ray) as they were: class, fields and message."""
+    import pickle
+
+    from emmi_gym.inputs.errors import FieldError
+    from emmi_gym.inputs.validation import OptionError
+
+    for error in (OptionError("gym.make", "particles", "an integer >= 1", -1), FieldError("a.yaml", "", "a mapping")):
+        copy = pickle.loads(pickle.dumps(error))
+        assert type(copy) is type(error) and str(copy) == str(error)
+        assert (copy.source, copy.field, copy.expected) == (error.source, error.field, error.expected)
