@@ -2,7 +2,7 @@
 
     python measurements/calibration.py env [--env-id emmi_gym/LoopOrder-v1] [--policy active_loop_closing]
         [--seeds 10] [--first-seed 1000000] [--options '{"world": "dungeon_maps/test"}'] [--slam '{...}']
-        [--workers 2] [--csv before.csv] [--label before]
+        [--unweighted] [--workers 2] [--csv before.csv] [--label before]
     python measurements/calibration.py logs [--data ../shared/datasets/radish-noisy] [--logs intel aces]
         [--log-seeds 0 1 2] [--filter-seeds 0] [--preset radish-noisy] [--slam '{...}'] [--csv logs.csv]
     python measurements/calibration.py plot before.csv after.csv --out calibration.png
@@ -51,8 +51,8 @@ LOGS = ("intel", "aces", "csail", "freiburg-079")
 
 
 def env_job(job) -> CalibrationRecord:
-    env_id, options, policy, seed = job
-    return calibrate_env(env_id, options, policy, [seed])
+    env_id, options, policy, seed, unweighted = job
+    return calibrate_env(env_id, options, policy, [seed], unweighted)
 
 
 def log_job(config, max_range: float, job) -> CalibrationRecord:
@@ -128,6 +128,8 @@ def main() -> None:
     arguments.add_seed_range(env, 10, HELD_OUT_SEED)
     env.add_argument("--options", default="{}", help="env options as JSON")
     env.add_argument("--slam", default=None, help="RBPFConfig fields as JSON (merged into the options' slam)")
+    env.add_argument("--unweighted", action="store_true",
+                     help="check the particles with equal weights (a diagnosis: the weights or the cloud?)")
     logs = sub.add_parser("logs", help="the real logs against their reference trajectories")
     logs.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared/datasets/radish-noisy"))
     logs.add_argument("--logs", nargs="+", default=list(LOGS), choices=LOGS)
@@ -153,10 +155,10 @@ def main() -> None:
         options = json_object(parser, "--options", args.options)
         if args.slam is not None:
             options["slam"] = {**options.get("slam", {}), **json_object(parser, "--slam", args.slam)}
-        jobs = [(args.env_id, options, args.policy, seed) for seed in arguments.seed_range(args)]
+        jobs = [(args.env_id, options, args.policy, seed, args.unweighted) for seed in arguments.seed_range(args)]
         records = run_in_processes(env_job, jobs, workers=args.workers, desc="episodes")
         title = (f"{args.env_id} {json.dumps(options)}, {args.policy}, seeds {args.first_seed}-"
-                 f"{args.first_seed + args.seeds - 1}")
+                 f"{args.first_seed + args.seeds - 1}{', unweighted' if args.unweighted else ''}")
     else:
         config = rbpf_config(parser, args.slam, None if args.preset == "none" else args.preset,
                              particles=args.particles, resolution=args.resolution, linear_update=0.0,

@@ -40,10 +40,14 @@ class CalibrationRecord:
 
 class UpdateChecks:
     """A watcher of an env's filter updates (:meth:`~emmi_gym.env.EmmiEnv.watch_updates`) that checks the
-    particles' pose and relative motions against the truth into ``record`` (set it before each reset)."""
+    particles' pose and relative motions against the truth into ``record`` (set it before each reset).
 
-    def __init__(self, windows=WINDOWS):
+    ``unweighted`` checks the cloud with equal weights instead of the filter's: a diagnosis of whether the
+    weights or the particles' positions make the belief too sure."""
+
+    def __init__(self, windows=WINDOWS, unweighted: bool = False):
         self.windows = tuple(windows)
+        self.unweighted = unweighted
         self.record = CalibrationRecord()
         self._truth: list[np.ndarray] = []
 
@@ -54,6 +58,8 @@ class UpdateChecks:
     def __call__(self, slam: RBPF, true_pose) -> None:
         self._truth.append(np.asarray(true_pose, dtype=np.float64))
         weights = slam.weights
+        if self.unweighted:
+            weights = np.full(weights.shape, 1.0 / weights.size)
         self.record.checks["pose"].append(check_pose(slam.poses, weights, true_pose))
         paths = slam.paths
         for w in self.windows:
@@ -62,12 +68,14 @@ class UpdateChecks:
                 self.record.checks[f"relative_{w}"].append(check_pose(relative_poses(paths, -1 - w), weights, truth))
 
 
-def loop_checks(env) -> list[PoseCheck]:
+def loop_checks(env, unweighted: bool = False) -> list[PoseCheck]:
     """For each revisit target the env offers now, the particles' displacement since the place it revisits
     (``x_now - x_then`` in the map's frame, with the heading's change) against the true one: its spread is
-    the target's loop spread."""
+    the target's loop spread (``unweighted``: see :class:`UpdateChecks`)."""
     core = env.unwrapped
     paths, weights = core.slam.paths, core.slam.weights
+    if unweighted:
+        weights = np.full(weights.shape, 1.0 / weights.size)
     truth = core.episode.true_poses_at_updates
     checks = []
     for target in core.targets:
@@ -88,18 +96,19 @@ def calibrate_episode(env, policy, seed: int, checks: UpdateChecks) -> Calibrati
     checks.start(record)
     env.reset(seed=seed)
     policy.reset(seed)
-    record.checks["loops"].extend(loop_checks(env))
+    record.checks["loops"].extend(loop_checks(env, checks.unweighted))
     terminated = truncated = False
     while not (terminated or truncated):
         _, _, terminated, truncated, _ = env.step(policy(env))
-        record.checks["loops"].extend(loop_checks(env))
+        record.checks["loops"].extend(loop_checks(env, checks.unweighted))
     return record
 
 
-def calibrate_env(env_id: str, options: dict, policy_name: str, seeds) -> CalibrationRecord:
-    """The checks of episodes ``seeds`` of ``env_id`` (with ``options``) under a scripted policy."""
+def calibrate_env(env_id: str, options: dict, policy_name: str, seeds, unweighted: bool = False) -> CalibrationRecord:
+    """The checks of episodes ``seeds`` of ``env_id`` (with ``options``) under a scripted policy (``unweighted``:
+    see :class:`UpdateChecks`)."""
     env = gym.make(env_id, **options)
-    checks = UpdateChecks()
+    checks = UpdateChecks(unweighted=unweighted)
     env.unwrapped.watch_updates(checks)
     policy = make_policy(policy_name)
     total = CalibrationRecord()

@@ -78,3 +78,16 @@ def test_a_real_logs_relative_motions_are_checked_against_its_reference():
     assert len(record.checks["relative_10"]) == len(result.rows) - 10
     one = summary(record.checks["relative_1"])
     assert 0.0 < one["rms_error"] < 0.1 and math.isfinite(one["xy_median"])
+
+
+def test_the_unweighted_diagnosis_checks_the_plain_mean_of_the_cloud():
+    env = gym.make("emmi_gym/LoopCorridor-v1", **TINY)
+    checks = UpdateChecks(windows=(1,), unweighted=True)
+    env.unwrapped.watch_updates(checks)
+    checks.start(record := CalibrationRecord())
+    env.reset(seed=1)
+    core = env.unwrapped
+    truth = core.episode.true_poses_at_updates[-1, :2]
+    plain = float(np.hypot(*(core.slam.poses[:, :2].mean(axis=0) - truth)))
+    assert record.checks["pose"][-1].error == pytest.approx(plain)
+    env.close()
