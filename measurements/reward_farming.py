@@ -1,4 +1,4 @@
-"""What each reward variant pays for standing still, spinning in place and exploring.
+"""What each registered reward pays for standing still, spinning in place and exploring.
 
     python measurements/reward_farming.py [--seeds 5] [--steps 300] [--decisions 40]
 
@@ -19,7 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym  # noqa: F401 (registers the ids)
-from emmi_gym.env.config import REWARDS
+from emmi_gym.env import REWARDS
 from emmi_gym.env.registration import ENV_IDS
 from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.policies import make_policy
@@ -37,7 +37,8 @@ def returns(steps: list[dict]) -> dict[str, float]:
 
 
 def velocity_episode(command, seed: int, n_steps: int) -> dict:
-    env = gym.make("emmi_gym/ExplorePlans-v1", **dict(HARD, action_mode="velocity", max_sim_steps=n_steps))
+    env = gym.make("emmi_gym/ExplorePlans-v1", **dict(HARD, action_mode="velocity", max_sim_steps=n_steps),
+                   info_rewards="all")
     env.reset(seed=seed)
     steps, done = [], False
     while not done:
@@ -48,7 +49,7 @@ def velocity_episode(command, seed: int, n_steps: int) -> dict:
 
 
 def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
-    env = gym.make("emmi_gym/ExplorePlans-v1", max_decisions=n_decisions)
+    env = gym.make("emmi_gym/ExplorePlans-v1", max_decisions=n_decisions, info_rewards="all")
     policy = make_policy(policy_name)
     env.reset(seed=seed)
     policy.reset(seed)
