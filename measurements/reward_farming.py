@@ -48,8 +48,9 @@ def velocity_episode(command, seed: int, n_steps: int) -> dict:
     return returns(steps)
 
 
-def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
-    env = gym.make("emmi_gym/ExplorePlans-v1", max_decisions=n_decisions, info_rewards="all")
+def waypoint_steps(policy_name: str, seed: int, n_decisions: int, env_id: str = "emmi_gym/ExplorePlans-v1") -> list:
+    """Every decision's reward components (every registered reward's) and duration, of one episode of the policy."""
+    env = gym.make(env_id, max_decisions=n_decisions, info_rewards="all")
     policy = make_policy(policy_name)
     env.reset(seed=seed)
     policy.reset(seed)
@@ -58,7 +59,12 @@ def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
         _, _, terminated, truncated, info = env.step(policy(env))
         steps.append({**info["reward_components"], "duration": info["sim_steps_this_step"]})
         done = terminated or truncated
-    return returns(steps)
+    env.close()
+    return steps
+
+
+def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
+    return returns(waypoint_steps(policy_name, seed, n_decisions))
 
 
 def main() -> None:

@@ -1,10 +1,13 @@
-"""Rewards as parts: the Reward type and its registry, and what a step measures for them."""
+"""Rewards as parts: the Reward type and its registry, what a step measures for them, the privileged rewards, and
+an observation that never carries the ground truth."""
 
 import dataclasses
 import warnings
 
 import gymnasium as gym
+import numpy as np
 import pytest
+from helpers import assert_same
 
 import emmi_gym
 from emmi_gym.env import REWARDS, Reward, emmi_env, register_reward
@@ -12,6 +15,7 @@ from emmi_gym.env.reward_registry import privileged_rewards, reward_named
 from emmi_gym.env.rewards import SCORES, Change, StepRewards
 from emmi_gym.inputs.validation import OptionError
 from emmi_gym.tools.policies import FrontierPolicy
+from emmi_gym.world import FREE, OCCUPIED
 
 gym.register_envs(emmi_gym)
 #: A small generated world of a few rooms, waypoint actions: a decision takes a fraction of a second.
@@ -35,11 +39,12 @@ def best_information(before, after):
 def test_the_built_ins_are_registered_with_what_they_read():
     assert list(REWARDS)[:6] == ["emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage",
                                  "map_information"]
-    assert set(privileged_rewards()) == {"coverage", "emmi_coverage"}  # read on the oracle map
+    assert set(privileged_rewards()) == {"coverage", "emmi_coverage", "oracle_accuracy", "wall_consistency", "ate"}
     assert not any(REWARDS[name].privileged for name in ("emmi", "pose_entropy", "joint_entropy", "map_information"))
-    assert REWARDS["pose_entropy"].value({"pose_entropy": 2.5}, {"pose_entropy": 2.0}) == 0.5  # a fall pays
+    assert REWARDS["ate"].value({"ate": 0.5}, {"ate": 0.2}) == pytest.approx(0.3)  # a fall of the ATE pays
+    assert REWARDS["oracle_accuracy"].value({"oracle_accuracy": 0.5}, {"oracle_accuracy": 0.6}) == pytest.approx(0.1)
     assert reward_named("emmi") is REWARDS["emmi"]
-    with pytest.raises(KeyError, match="no reward named 'nothing'; registered: .*'coverage'"):
+    with pytest.raises(KeyError, match="no reward named 'nothing'; registered: .*'ate'"):
         reward_named("nothing")
 
 
@@ -128,6 +133,65 @@ def test_the_ground_truth_is_scored_only_where_a_reward_info_or_the_end_asks(mon
             _, _, _, _, last = again.step(frontier_action(again))
         assert len(calls) == 1 + len(infos) and {k: last[k] for k in SCORES} == {k: infos[-1][k] for k in SCORES}
         calls.clear()
+
+
+def test_the_privileged_rewards_pay_the_change_of_the_scores_and_say_so():
+    env = gym.make("emmi_gym/Explore-v1", reward="oracle_accuracy", info_rewards=["wall_consistency", "ate", "emmi"],
+                   info_scores="always", **TINY)
+    _, before = env.reset(seed=4)
+    for _ in range(3):
+        _, reward, _, _, info = env.step(frontier_action(env))
+        components = info["reward_components"]
+        assert components["oracle_accuracy"] == pytest.approx(50.0 * (info["oracle_accuracy"] -
+                                                                       before["oracle_accuracy"]))
+        assert components["wall_consistency"] == pytest.approx(
+            10.0 * (info["wall_consistency"] - before["wall_consistency"]))
+        assert components["ate"] == pytest.approx(10.0 * (before["ate"] - info["ate"]))  # a fall pays
+        assert reward == pytest.approx(components["oracle_accuracy"] + components["time"] + components["collision"])
+        assert info["privileged_rewards"] == ["oracle_accuracy", "wall_consistency", "ate"]
+        before = info
+
+
+def scramble_the_ground_truth(env) -> None:
+    """Give ``env`` another ground truth behind the same filter input: the floor plan's free and occupied
+    cells swapped, the oracle map fed scans the robot never made, the true poses moved by a metre. The
+    simulator (the odometry and the laser the filter reads) is untouched."""
+    env.truth = dataclasses.replace(env.truth, grid=np.where(env.truth.grid == FREE, OCCUPIED, env.truth.grid))
+    for x in np.linspace(*env.world.bounds[::2], 5):
+        env.episode.oracle.insert((x, env.world.bounds[1] + 1.0, 0.5), np.full(len(env.laser_config.angles), 3.0),
+                                  env.laser_config.angles)
+    truth = type(env.episode)
+
+    class Moved(truth):
+        @property
+        def true_poses_at_updates(self):
+            return super().true_poses_at_updates + np.array([1.0, 0.0, 0.0])
+
+        @property
+        def true_path(self):
+            return [pose + np.array([1.0, 0.0, 0.0]) for pose in super().true_path]
+
+    env.episode.__class__ = Moved
+
+
+def test_the_observation_never_carries_the_ground_truth():
+    """Two envs with the same filter input, one of them with a ground truth scrambled after the reset and
+    paying a privileged reward: their observations (and the actions offered) stay the same bit for bit while
+    every ground-truth score differs."""
+    plain = gym.make("emmi_gym/Explore-v1", info_scores="always", **TINY)
+    taught = gym.make("emmi_gym/Explore-v1", reward="oracle_accuracy", info_rewards="all", info_scores="always",
+                      **TINY)
+    observations = [env.reset(seed=4)[0] for env in (plain, taught)]
+    assert_same(*observations)
+    scramble_the_ground_truth(taught.unwrapped)
+    differed = set()
+    for _ in range(3):
+        assert np.array_equal(plain.unwrapped.action_masks(), taught.unwrapped.action_masks())
+        action = frontier_action(plain)
+        (seen, _, _, _, info), (seen_too, _, _, _, taught_info) = plain.step(action), taught.step(action)
+        assert_same(seen, seen_too)
+        differed |= {k for k in (*SCORES, "coverage") if info[k] != taught_info[k]}
+    assert differed == {*SCORES, "coverage"}  # the scramble reached every score: the test can fail
 
 
 def test_step_rewards_refuse_two_rewards_of_one_name():
