@@ -89,9 +89,9 @@ class EnvConfig:
     - ``reward``: a registered reward's name (:data:`~emmi_gym.env.reward_registry.REWARDS`) or a
       :class:`~emmi_gym.env.rewards.Reward`; ``info_rewards`` names more (or ``"all"``) whose values go in
       ``info["reward_components"]`` beside it. Only what these read is measured: the ground-truth scores
-      (:data:`~emmi_gym.env.rewards.SCORES`) at every step only for a privileged reward, else at the episode's
-      end (in its last ``info``), or after every reset and step with ``info_scores="always"`` (what an
-      evaluation at equal robot time reads).
+      (:data:`~emmi_gym.env.rewards.SCORES`) at every step only for a reward that reads one, else at the
+      episode's end (in its last ``info``), or after every reset and step with ``info_scores="always"``
+      (what an evaluation at equal robot time reads).
     - ``update_records``: put the metrics of every RBPF update of a step in
       ``info["rbpf_updates"]`` (a list of rows; the paper's per-update curves, as the A/B
       experiment draws them). Off, the certainty of the particle set is computed once per
@@ -230,7 +230,6 @@ class EnvConfig:
 def make_config(**options) -> EnvConfig:
     """An :class:`EnvConfig` from keyword options; any mistake raises an :class:`OptionError` naming the option."""
     return build(EnvConfig, options, "", source=SOURCE)
-
 
 
 def deprecated_reward_scales(stacklevel: int = 2) -> dict[str, float]:

@@ -35,8 +35,8 @@ class EmmiEnv(gym.Env):
     simulator step. What the agent observes is the observation type's
     (:mod:`emmi_gym.env.observation`, ``observation_type``, picked by ``observation``). What a step pays is
     the reward's (:mod:`emmi_gym.env.rewards`, ``reward``, picked by name or given), and only what it and
-    ``info`` read is measured: the ground-truth scores (:meth:`ground_truth_scores`) for a privileged
-    reward, ``info_scores="always"`` or the episode's last ``info``.
+    ``info`` read is measured: the ground-truth scores (:meth:`ground_truth_scores`) for a reward that
+    reads one, ``info_scores="always"`` or the episode's last ``info``.
 
     The environment owns the loop: the action type drives the episode's robot (``episode``, a
     :class:`~emmi_gym.env.episode.RobotEpisode`: the simulator, the filter fed from it, the oracle
@@ -201,6 +201,8 @@ class EmmiEnv(gym.Env):
         update, measured once per update when first asked: the accuracy against the floor plan and against the
         oracle map, the wall consistency and the ATE (ground truth, for evaluation and privileged rewards
         only; what the episode's last ``info`` holds)."""
+        if self._expected is None:
+            raise RuntimeError("call reset() before ground_truth_scores(): there is no map to score yet")
         if self._scores is None:
             mine = map_labels(self._expected)  # labelled once (unobserved, free, occupied) for every score
             oracle_accuracy, wall_consistency = oracle_scores_of_labels(mine, self._seen, self.geometry.resolution)

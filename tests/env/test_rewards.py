@@ -114,6 +114,8 @@ def test_the_ground_truth_is_scored_only_where_a_reward_info_or_the_end_asks(mon
     info_scores="always" measures them after every filter update (and gives the same figures)."""
     calls = counting(monkeypatch, "absolute_trajectory_error")
     env = gym.make("emmi_gym/Explore-v1", **TINY)
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.unwrapped.ground_truth_scores()
     _, info = env.reset(seed=4)
     assert not set(SCORES) & set(info) and not calls
     done, infos = False, []
