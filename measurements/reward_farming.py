@@ -1,4 +1,4 @@
-"""What each reward variant pays for standing still, spinning in place and exploring.
+"""What each registered reward pays for standing still, spinning in place and exploring.
 
     python measurements/reward_farming.py [--seeds 5] [--steps 300] [--decisions 40]
 
@@ -19,7 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 import emmi_gym  # noqa: F401 (registers the ids)
-from emmi_gym.env.config import REWARDS
+from emmi_gym.env import REWARDS
 from emmi_gym.env.registration import ENV_IDS
 from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.policies import make_policy
@@ -37,7 +37,8 @@ def returns(steps: list[dict]) -> dict[str, float]:
 
 
 def velocity_episode(command, seed: int, n_steps: int) -> dict:
-    env = gym.make("emmi_gym/ExplorePlans-v1", **dict(HARD, action_mode="velocity", max_sim_steps=n_steps))
+    env = gym.make("emmi_gym/ExplorePlans-v1", **dict(HARD, action_mode="velocity", max_sim_steps=n_steps),
+                   info_rewards="all")
     env.reset(seed=seed)
     steps, done = [], False
     while not done:
@@ -47,8 +48,9 @@ def velocity_episode(command, seed: int, n_steps: int) -> dict:
     return returns(steps)
 
 
-def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
-    env = gym.make("emmi_gym/ExplorePlans-v1", max_decisions=n_decisions)
+def waypoint_steps(policy_name: str, seed: int, n_decisions: int, env_id: str = "emmi_gym/ExplorePlans-v1") -> list:
+    """Every decision's reward components (every registered reward's) and duration, of one episode of the policy."""
+    env = gym.make(env_id, max_decisions=n_decisions, info_rewards="all")
     policy = make_policy(policy_name)
     env.reset(seed=seed)
     policy.reset(seed)
@@ -57,7 +59,12 @@ def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
         _, _, terminated, truncated, info = env.step(policy(env))
         steps.append({**info["reward_components"], "duration": info["sim_steps_this_step"]})
         done = terminated or truncated
-    return returns(steps)
+    env.close()
+    return steps
+
+
+def waypoint_episode(policy_name: str, seed: int, n_decisions: int) -> dict:
+    return returns(waypoint_steps(policy_name, seed, n_decisions))
 
 
 def main() -> None:

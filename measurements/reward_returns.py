@@ -1,9 +1,11 @@
 """Reward alignment: which reward, time cost and discount pay more to the policy that maps better.
 
-Plays the scripted policies on the same (world, seed) episodes, keeps every step's reward components,
-and prints for each reward variant, time cost and discount each policy's mean return, on how many
-pairs of episodes the better final map also earned more, the within-episode correlation of return
-and final map quality, and the policy the reward prefers (emmi_gym/tools/experiments/reward_alignment.py).
+Plays the scripted policies on the same (world, seed) episodes, keeps every step's reward components
+(every registered reward's: the env's ``info_rewards="all"``), and prints for each reward, time cost and
+discount each policy's mean return, on how many pairs of episodes the better final map also earned more,
+the within-episode correlation of return and final map quality, and the policy the reward prefers
+(emmi_gym/tools/experiments/reward_alignment.py); beside each reward what it reads, the filter or the
+ground truth (a privileged reward).
 
     python measurements/reward_returns.py --worlds dungeon_maps/train --plans 12 \\
         --policies frontier active_loop_closing random --out results/alignment_train
@@ -21,7 +23,8 @@ own env keywords.
 
 ``--paired-with POLICY`` adds each policy's return minus POLICY's on the same episodes, with its 95% interval.
 ``--episodes-from FILE ...`` reads the ``episodes.json`` of earlier runs (``--out``) instead of playing, pooled: an
-agent played later beside the policies played once (an episode two files hold must be the same in both).
+agent played later beside the policies played once (an episode two files hold must be the same in both); by
+default the rewards every step of them holds.
 
 ``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
 every ``--seeds``) or worlds (names, files: one episode per seed). Choose on the train split; the
@@ -38,6 +41,7 @@ import gymnasium as gym
 from _options import checked, json_object
 
 from emmi_gym.env import REWARDS, EnvConfig
+from emmi_gym.env.reward_registry import privileged_rewards
 from emmi_gym.inputs.validation import build
 from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.comparison import ComparisonSettings, compare_on, policy_name, worlds_of
@@ -65,7 +69,8 @@ def main() -> None:
                         help="scripted policies and shipped agents")
     parser.add_argument("--models", nargs="*", default=[], metavar="NAME=MODEL",
                         help="trained models ('emmi-gym train' .zip files) played beside the policies")
-    parser.add_argument("--rewards", nargs="+", default=list(REWARDS), choices=REWARDS)
+    parser.add_argument("--rewards", nargs="+", choices=REWARDS,
+                        help="registered rewards (default: every one; with --episodes-from, those the steps hold)")
     parser.add_argument("--time-costs", type=float, nargs="+", default=[0.0, EnvConfig.time_cost])
     parser.add_argument("--discounts", nargs="+", default=["none", "0.9@100", "0.99@100"],
                         help="'none', GAMMA (per decision) or GAMMA@STEPS (per STEPS simulator steps)")
@@ -78,11 +83,17 @@ def main() -> None:
     args = parser.parse_args()
     if args.episodes_from:
         rows = pooled_episodes(parser, args.episodes_from)
+        held = [name for name in REWARDS if all(name in step for row in rows for step in row["steps"])]
+        missing = sorted(set(args.rewards or ()) - set(held))
+        if missing:
+            parser.error(f"--rewards: the steps of --episodes-from do not hold {missing} (they hold {held})")
+        args.rewards = args.rewards or held
         report(parser, args, rows, discounts_of(parser, args),
                f"Reward alignment over {', '.join(map(str, args.episodes_from))}")
         return
     if args.env_id not in gym.registry:
         parser.error(f"--env-id: no environment {args.env_id!r} is registered")
+    args.rewards = args.rewards or list(REWARDS)
     discounts = discounts_of(parser, args)
     try:
         policies = arguments.baseline_policies(args.policies, "--policies")
@@ -113,8 +124,10 @@ def discounts_of(parser: argparse.ArgumentParser, args) -> list[Discount]:
 
 def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: list[Discount], title: str) -> None:
     """The alignment tables of ``rows`` (and the paired returns, with ``--paired-with``) to stdout and ``--out``."""
-    table = markdown(alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES)), policy_front(rows),
-                     title)
+    privileged = privileged_rewards()
+    reads = {name: "ground truth" if name in privileged else "filter" for name in args.rewards}
+    table = markdown(alignment(rows, args.rewards, args.time_costs, discounts, tuple(QUALITIES), reads),
+                     policy_front(rows), title)
     if args.paired_with is not None:
         if args.paired_with not in {row["policy"] for row in rows}:
             parser.error(f"--paired-with: no episodes of {args.paired_with!r}")
@@ -122,7 +135,7 @@ def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: l
             paired = paired_returns(rows, args.rewards, args.time_costs, discounts, args.paired_with)
         except ValueError as error:
             parser.error(f"--paired-with: {error}")
-        table += "\n\n" + paired_markdown(paired, args.paired_with)
+        table += "\n\n" + paired_markdown(paired, args.paired_with, privileged)
     print(table)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

@@ -15,6 +15,13 @@ their hashes.)
 Each line is ``<what> <sha256 of every observation, reward, flag and numeric info value>``.
 Only the public Gymnasium API and the ``emmi-gym replay`` command are used, so the script
 runs unchanged on any version of the package.
+
+A change to what ``info`` holds changes the hashes while the episodes stay the same: ``--no-info`` hashes
+the observations, rewards and flags alone (what an id's version answers for), ``--drop-info KEY ...``
+leaves the keys given out of the hash, and ``--options JSON`` makes every id with further ``gym.make``
+options (the newer code asked for an ``info`` the older one gave unasked)::
+
+    python scripts/episode_hashes.py --no-info > after.txt
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
+import json
 import subprocess
 import sys
 import tempfile
@@ -57,13 +65,19 @@ def _hash_into(digest, value) -> None:
         digest.update(value.encode())
 
 
-def episode_hash(env_id: str, seed: int, steps: int) -> str:
-    """Play ``steps`` seeded random actions (masked for waypoint envs); hash everything seen."""
-    env = gym.make(env_id)
+def episode_hash(env_id: str, seed: int, steps: int, options: dict | None = None, info: bool = True,
+                 drop_info: tuple[str, ...] = ()) -> str:
+    """Play ``steps`` seeded random actions (masked for waypoint envs); hash everything seen (``info`` less
+    the keys ``drop_info``; none of it without ``info``)."""
+    env = gym.make(env_id, **(options or {}))
     digest = hashlib.sha256()
-    obs, info = env.reset(seed=seed)
+
+    def kept(found: dict) -> dict:
+        return {k: v for k, v in found.items() if k not in drop_info} if info else {}
+
+    obs, found = env.reset(seed=seed)
     _hash_into(digest, obs)
-    _hash_into(digest, info)
+    _hash_into(digest, kept(found))
     rng = np.random.default_rng(seed)
     for _ in range(steps):
         masks = getattr(env.unwrapped, "action_masks", None)
@@ -73,8 +87,8 @@ def episode_hash(env_id: str, seed: int, steps: int) -> str:
         else:
             low, high = env.action_space.low, env.action_space.high
             action = rng.uniform(low, high).astype(env.action_space.dtype)
-        obs, reward, terminated, truncated, info = env.step(action)
-        for value in (obs, reward, terminated, truncated, info):
+        obs, reward, terminated, truncated, found = env.step(action)
+        for value in (obs, reward, terminated, truncated, kept(found)):
             _hash_into(digest, value)
         if terminated or truncated:
             break
@@ -100,14 +114,21 @@ def main() -> None:
     arguments.add_seed_range(parser, 2)
     parser.add_argument("--decisions", type=arguments.integer(1), default=12, help="steps per waypoint episode")
     parser.add_argument("--velocity-steps", type=arguments.integer(1), default=400, help="steps per velocity episode")
+    parser.add_argument("--no-info", action="store_true", help="hash the observations, rewards and flags only")
+    parser.add_argument("--drop-info", nargs="+", default=[], metavar="KEY", help="info keys left out of the hash")
+    parser.add_argument("--options", default="{}", help="JSON of further gym.make options for every id")
+    parser.add_argument("--no-replay", action="store_true", help="leave out the log replay")
     args = parser.parse_args()
+    options = json.loads(args.options)
     gym.register_envs(emmi_gym)
     ids = sorted(i for i in gym.registry if i.startswith("emmi_gym/"))
     for env_id in ids:
         steps = args.velocity_steps if "Velocity" in env_id else args.decisions
         for seed in arguments.seed_range(args):
-            print(f"{env_id} seed={seed} {episode_hash(env_id, seed, steps)}", flush=True)
-    print(f"replay {LOG.name} {replay_hash()}", flush=True)
+            digest = episode_hash(env_id, seed, steps, options, not args.no_info, tuple(args.drop_info))
+            print(f"{env_id} seed={seed} {digest}", flush=True)
+    if not args.no_replay:
+        print(f"replay {LOG.name} {replay_hash()}", flush=True)
 
 
 if __name__ == "__main__":

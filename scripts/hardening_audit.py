@@ -157,7 +157,7 @@ def cases(folder: Path) -> list[tuple[str, object]]:
         ("laser range_sigma=inf", make(laser={"range_sigma": float("inf")})),
         ("generator wall_thickness=nan", make("emmi_gym/Explore-v1", generator={"wall_thickness": float("nan")})),
         ("laser max_range=0.5: map_accuracy",
-         make("emmi_gym/ExploreVelocity-v0", reset=True, laser={"max_range": 0.5})),
+         make("emmi_gym/ExploreVelocity-v0", reset=True, laser={"max_range": 0.5}, info_scores="always")),
         # 8. world files
         ("YAML syntax error", world_file(folder, "name: box\nbounds: {xmin: 0, ymin: 0\nwalls: []\n", "syntax.yaml")),
         ("binary world file", world_file(folder, os.urandom(512).replace(b"\0", b"\1") + b"\0", "binary.yaml")),

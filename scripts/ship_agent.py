@@ -21,6 +21,7 @@ from pathlib import Path
 import yaml
 
 from emmi_gym import pretrained
+from emmi_gym.env.reward_registry import reward_named
 from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.comparison import markdown_table, policy_means
 from emmi_gym.tools.experiments.report import read_csv
@@ -95,9 +96,12 @@ def main() -> None:
     seconds = record["wall_seconds"] if record else args.training_seconds
     trained_on = record["machine"] if record else "the machine below"
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    reward = config.env_kwargs.get("reward", "emmi")
+    privileged = (" It is a privileged reward: trained with the ground truth as teacher (in simulation only), the "
+                  "agent acts on the filter's belief alone." if reward_named(reward).privileged else "")
     card = f"""# {args.name}
 
-{config.algorithm} ({config.policy}) on `{config.env_id}` with the `{config.env_kwargs.get('reward', 'emmi')}` reward.
+{config.algorithm} ({config.policy}) on `{config.env_id}` with the `{reward}` reward.{privileged}
 
 - Budget: {pretrained.load(args.name).num_timesteps} decisions, seed {config.seed}, {config.n_envs} envs.
 - Training time: {seconds / 60:.1f} min of wall time on {trained_on}.

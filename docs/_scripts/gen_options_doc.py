@@ -16,7 +16,7 @@ import sys
 from dataclasses import MISSING, fields
 from pathlib import Path
 
-from emmi_gym.env.config import EnvConfig
+from emmi_gym.env.config import EnvConfig, RewardOption
 from emmi_gym.inputs import validation as v
 from emmi_gym.slam.config import PRESETS as RBPF_PRESETS
 from emmi_gym.slam.config import RBPFConfig
@@ -69,6 +69,8 @@ def interval(check: v.Real) -> str:
 def accepted(check) -> str:
     """What a check accepts, in a few words (the type column says what kind; the error messages give the
     long form): an interval with its unit, the values to choose from."""
+    if isinstance(check, RewardOption):  # the registry's names: docs/rewards.md lists them
+        return '"all", or names or Rewards' if check.many else "a registered name or a Reward"
     if isinstance(check, v.Real):
         return interval(check)
     if isinstance(check, v.Integer):

@@ -6,8 +6,10 @@ from dataclasses import dataclass
 
 from ..inputs.validation import (
     Boolean,
+    Check,
     Choice,
     Integer,
+    Invalid,
     Mapping,
     Maybe,
     Preset,
@@ -24,26 +26,51 @@ from ..world.images import DEFAULT_PIXEL_SIZE, PIXEL_SIZE
 from ..world.loop_worlds import LoopWorldConfig
 from ..world.map_sets import WORLD_FAMILIES
 from ..world.presets import LASER_PRESETS, ODOMETRY_PRESETS, laser_config, odometry_config
+from .reward_registry import REWARDS, reward_named
+from .rewards import Reward
 
-REWARDS = ("emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage", "map_information")
 ACTION_MODES = ("waypoint", "velocity")
 VELOCITY_ACTIONS = ("continuous", "discrete")
 OBSERVATIONS = ("dict", "image")
 STARTS = ("decision", "start")
+#: When ``info`` holds the ground-truth scores (:data:`~emmi_gym.env.rewards.SCORES`): at the episode's end (its
+#: terminating or truncating step), or also after every reset and step.
+INFO_SCORES = ("end", "always")
 #: Where the options come from, in error messages.
 SOURCE = "gym.make"
 #: The observation's image side, pixels: the least that the policies' map encoder (SB3's NatureCNN, kernels
 #: 8/4/3 with strides 4/2/1) takes, and a most at which its last layer stays within tens of millions of weights.
 MIN_OBS_SIZE, MAX_OBS_SIZE = 36, 256
+#: The most rewards ``info_rewards`` may name.
+MAX_INFO_REWARDS = 64
 
-#: Reward scales: each turns its measure's typical change over one macro-action into O(0.1-1).
-#: EMMI lies in [0, 1] bits/cell and moves by 0.01-0.1 per macro-action; the pose entropy
-#: (nats) by about 1; the joint entropy (nats, dominated by eq. 8 over the whole grid) by
-#: thousands as cells get observed; coverage is a fraction of the reachable free space, and so is
-#: EMMI x coverage (bits per reachable cell); the expected map's information (bits, one per certain
-#: cell) grows by hundreds to thousands as a macro-action observes new cells.
-REWARD_SCALES = {"emmi": 10.0, "pose_entropy": 0.1, "joint_entropy": 1e-3, "coverage": 10.0, "emmi_coverage": 10.0,
-                 "map_information": 1e-3}
+
+@dataclass(frozen=True)
+class RewardOption(Check):
+    """A registered reward's name (:data:`~emmi_gym.env.reward_registry.REWARDS`, read when the check runs) or a
+    :class:`~emmi_gym.env.rewards.Reward`; with ``many``, a list of them or ``"all"`` (every registered one)."""
+
+    many: bool = False
+
+    def describe(self) -> str:
+        one = f"a registered reward's name (one of {list(REWARDS)}) or a Reward"
+        return f"'all' or a list of at most {MAX_INFO_REWARDS} of: {one}" if self.many else one
+
+    def one(self, value):
+        if isinstance(value, Reward) or (isinstance(value, str) and value in REWARDS):
+            return value
+        raise Invalid(self.describe())
+
+    def __call__(self, value):
+        if not self.many:
+            return self.one(value)
+        if isinstance(value, str) and value == "all":
+            return value
+        if isinstance(value, (str, Reward)):
+            value = (value,)
+        if not isinstance(value, (list, tuple)) or len(value) > MAX_INFO_REWARDS:
+            raise Invalid(self.describe())
+        return tuple(self.one(v) for v in value)
 
 
 @dataclass(frozen=True)
@@ -59,7 +86,12 @@ class EnvConfig:
     - ``start_at``: ``"decision"`` drives the world's ``to_decision`` route with the RBPF
       running before the first observation (the paper's robot up to its step 65);
       ``"start"`` begins at the start pose.
-    - ``reward``: one of :data:`REWARDS`; all are computed and put in ``info``.
+    - ``reward``: a registered reward's name (:data:`~emmi_gym.env.reward_registry.REWARDS`) or a
+      :class:`~emmi_gym.env.rewards.Reward`; ``info_rewards`` names more (or ``"all"``) whose values go in
+      ``info["reward_components"]`` beside it. Only what these read is measured: the ground-truth scores
+      (:data:`~emmi_gym.env.rewards.SCORES`) at every step only for a reward that reads one, else at the
+      episode's end (in its last ``info``), or after every reset and step with ``info_scores="always"``
+      (what an evaluation at equal robot time reads).
     - ``update_records``: put the metrics of every RBPF update of a step in
       ``info["rbpf_updates"]`` (a list of rows; the paper's per-update curves, as the A/B
       experiment draws them). Off, the certainty of the particle set is computed once per
@@ -98,12 +130,16 @@ class EnvConfig:
         help="'waypoint': an action sends the robot to a target slot; 'velocity': (v, omega) for one step")
     velocity_actions: str = option("continuous", Choice(VELOCITY_ACTIONS),
                                    help="in velocity mode: a Box of (v, omega) in [-1, 1], or five discrete commands")
-    reward: str = option("emmi", Choice(REWARDS),
-                         help="the measure whose change over a step is the reward")
+    reward: str | Reward = option("emmi", RewardOption(),
+                                  help="the reward paid (docs/rewards.md)")
+    info_rewards: tuple | str = option((), RewardOption(many=True),
+                                       help="more rewards whose values info['reward_components'] shows")
+    info_scores: str = option("end", Choice(INFO_SCORES),
+                              help="when info holds the ground-truth scores: the episode's end or every step")
     update_records: bool = option(False, Boolean(),
                                   help="put the measures of every filter update of a step in info['rbpf_updates']")
     reward_scale: float | None = option(None, Maybe(Real(0.0, 1e6, open_lo=True), "the reward's default scale"),
-                                        help="factor on the chosen measure's change; None: its default (REWARD_SCALES)")
+                                        help="factor on the reward's value; None: the reward's own scale")
     time_cost: float = option(0.002, Real(0.0, 1e3),
                               help="subtracted per simulator step, whatever the reward")
     collision_cost: float = option(0.05, Real(0.0, 1e3),
@@ -154,6 +190,11 @@ class EnvConfig:
             if name in self.slam:
                 fail(self, f"slam.{name}", f"no {name} inside slam: give it as the top-level option {name} "
                      "(which sets the filter's)", self.slam[name])
+        paid, shown = self.rewards()
+        by_name = {}
+        for reward in (paid, *shown):
+            if by_name.setdefault(reward.name, reward) != reward:
+                fail(self, "info_rewards", f"one reward per name (two differ under {reward.name!r})", reward)
         # the nested options, checked now (gym.make and agent configurations fail before any work starts)
         self.laser_config(), self.odometry_config(), self.slam_config(), self.generator_config()
 
@@ -173,7 +214,13 @@ class EnvConfig:
 
     @property
     def scale(self) -> float:
-        return self.reward_scale if self.reward_scale is not None else REWARD_SCALES[self.reward]
+        """The factor on the paid reward's value: ``reward_scale``, else the reward's own scale."""
+        return self.reward_scale if self.reward_scale is not None else reward_named(self.reward).scale
+
+    def rewards(self) -> tuple[Reward, tuple[Reward, ...]]:
+        """The reward paid and those ``info_rewards`` names (every registered one for ``"all"``)."""
+        shown = tuple(REWARDS.values()) if self.info_rewards == "all" else self.info_rewards
+        return reward_named(self.reward), tuple(reward_named(r) for r in shown)
 
     @property
     def n_actions(self) -> int:
@@ -183,3 +230,19 @@ class EnvConfig:
 def make_config(**options) -> EnvConfig:
     """An :class:`EnvConfig` from keyword options; any mistake raises an :class:`OptionError` naming the option."""
     return build(EnvConfig, options, "", source=SOURCE)
+
+
+def deprecated_reward_scales(stacklevel: int = 2) -> dict[str, float]:
+    """The scales by name, as ``REWARD_SCALES`` gave them before the rewards had a registry, with a warning."""
+    import warnings
+
+    warnings.warn("REWARD_SCALES is deprecated: read REWARDS[name].scale (emmi_gym.env.REWARDS); it goes in "
+                  "emmi-gym 0.5.0", FutureWarning, stacklevel=stacklevel + 1)
+    return {name: reward.scale for name, reward in REWARDS.items()}
+
+
+def __getattr__(name: str):
+    """``REWARD_SCALES`` (PEP 562): deprecated, see :func:`deprecated_reward_scales`."""
+    if name == "REWARD_SCALES":
+        return deprecated_reward_scales(stacklevel=2)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -13,12 +13,12 @@ from ..slam import RBPF, UpdateMetrics
 from ..world import GroundTruth, RobotConfig, Simulator, WorldSpec, rasterise
 from ..world.map_sets import WorldSource
 from .actions import ActionType, action_factory
-from .config import REWARDS, EnvConfig, make_config
+from .config import EnvConfig, make_config
 from .episode import RobotEpisode
 from .memory import check_env_memory
 from .observation import ObservationType, observation_factory
 from .rendering import HumanWindow, render_frame
-from .rewards import Snapshot, reward_components, total_reward
+from .rewards import FILTER_MEASURES, Reward, StepRewards
 
 #: Simulator steps (60 s) added to the time a route takes at full speed, in the bound on driving it.
 ROUTE_SLACK_STEPS = 600
@@ -33,7 +33,10 @@ class EmmiEnv(gym.Env):
     ``n_frontiers + n_revisits`` candidate targets (use :meth:`action_masks` with sb3-contrib's
     MaskablePPO) and the robot drives there; in velocity mode it is a velocity command for one
     simulator step. What the agent observes is the observation type's
-    (:mod:`emmi_gym.env.observation`, ``observation_type``, picked by ``observation``).
+    (:mod:`emmi_gym.env.observation`, ``observation_type``, picked by ``observation``). What a step pays is
+    the reward's (:mod:`emmi_gym.env.rewards`, ``reward``, picked by name or given), and only what it and
+    ``info`` read is measured: the ground-truth scores (:meth:`ground_truth_scores`) for a reward that
+    reads one, ``info_scores="always"`` or the episode's last ``info``.
 
     The environment owns the loop: the action type drives the episode's robot (``episode``, a
     :class:`~emmi_gym.env.episode.RobotEpisode`: the simulator, the filter fed from it, the oracle
@@ -80,8 +83,15 @@ class EmmiEnv(gym.Env):
         # derived from the expected map, recomputed when the filter updated (_refresh)
         self._metrics: UpdateMetrics | None = None
         self._expected: np.ndarray | None = None
-        self._coverage = self._map_accuracy = self._oracle_accuracy = self._wall_consistency = self._ate = 0.0
-        self._snapshot: Snapshot | None = None  # the measures the next step's reward compares with
+        self._coverage = 0.0
+        self._seen: np.ndarray | None = None  # the oracle map's labels as of the same update
+        self._scores: dict | None = None  # the ground-truth scores as of the same update, once asked for
+        self.reward: Reward  # the reward paid, and those info shows beside it
+        self.info_rewards: tuple[Reward, ...]
+        self.reward, self.info_rewards = cfg.rewards()
+        self._rewards = StepRewards(self.reward, self.info_rewards, cfg.reward_scale, cfg.time_cost,
+                                    cfg.collision_cost)
+        self._before: dict | None = None  # the measures the rewards read, as the next step's rewards compare them
         self._window: HumanWindow | None = None
         self._watchers: list = []  # called after every filter update (watch_updates)
         self.action_type: ActionType = action_factory(self, cfg)
@@ -113,8 +123,8 @@ class EmmiEnv(gym.Env):
             self._drive_route(world, "to_decision")
         self.episode.restart_counts()
         self._refresh()
-        self._snapshot = self._take_snapshot()
-        return self.observation_type.observe(), self._info({k: 0.0 for k in (*REWARDS, "time", "collision")})
+        self._before = self._measures()
+        return self.observation_type.observe(), self._info(self._rewards.none(), end=False)
 
     def _drive_route(self, world, name: str) -> None:
         """Drive a route of the world with the true pose (the filter running), within a bound of time:
@@ -151,14 +161,15 @@ class EmmiEnv(gym.Env):
         steps0, collisions0 = self.sim_steps, self.collisions
         acted = self.action_type.act(action)
         self._refresh()
-        after = self._take_snapshot()
-        components = reward_components(self._snapshot, after, self.sim_steps - steps0,
-                                       self.collisions - collisions0, self.config)
-        self._snapshot = after
-        reward = total_reward(components, self.config)
-        terminated = after.coverage >= self.config.coverage_target
+        after = self._measures()
+        components = self._rewards.components(self._before, after, self.sim_steps - steps0,
+                                               self.collisions - collisions0)
+        self._before = after
+        reward = self._rewards.total(components)
+        terminated = self._coverage >= self.config.coverage_target
         truncated = self.sim_steps >= self.config.max_sim_steps or self.action_type.truncated()
-        observation, info = self.observation_type.observe(), self._info(components)
+        observation = self.observation_type.observe()
+        info = self._info(components, end=terminated or truncated)
         info["sim_steps_this_step"] = self.sim_steps - steps0
         info.update(acted)
         if self.render_mode == "human":
@@ -177,22 +188,43 @@ class EmmiEnv(gym.Env):
         self._metrics = self.slam.measure()
         self._expected = self.slam.expected_map().copy()  # as of this refresh (the filter's own changes)
         self._expected.flags.writeable = False  # handed out by expected_map, never changed
-        # each map labelled once (unobserved, free, occupied), for coverage and every score
-        mine, seen = map_labels(self._expected), self.episode.oracle.labels()
         # coverage: the reachable free space the scans have swept, read on the oracle map (the same scans at
         # the true poses), so that it measures exploration and not how well the estimated map lines up
         # with the floor plan (a map turned by a few degrees would otherwise never reach the target)
-        self._coverage = float(np.count_nonzero((seen == 0) & self._reachable)) / self._n_reachable
-        self._map_accuracy = accuracy_of_labels(mine, self.truth.grid)
-        self._oracle_accuracy, self._wall_consistency = oracle_scores_of_labels(mine, seen, self.geometry.resolution)
-        self._ate = absolute_trajectory_error(self.slam.paths[self.slam.best], self.episode.true_poses_at_updates,
-                                              align=False)
+        self._seen = self.episode.oracle.labels()
+        self._coverage = float(np.count_nonzero((self._seen == 0) & self._reachable)) / self._n_reachable
+        self._scores = None  # measured when asked (ground_truth_scores)
         self.action_type.refresh()
         self.observation_type.refresh()
 
-    def _take_snapshot(self) -> Snapshot:
-        m = self._metrics
-        return Snapshot(m.emmi, m.pose_entropy, m.joint_entropy, self._coverage, m.map_information)
+    def ground_truth_scores(self) -> dict[str, float]:
+        """The scores against the ground truth (:data:`~emmi_gym.env.rewards.SCORES`) as of the filter's last
+        update, measured once per update when first asked: the accuracy against the floor plan and against the
+        oracle map, the wall consistency and the ATE (ground truth, for evaluation and privileged rewards
+        only; what the episode's last ``info`` holds)."""
+        if self._expected is None:
+            raise RuntimeError("call reset() before ground_truth_scores(): there is no map to score yet")
+        if self._scores is None:
+            mine = map_labels(self._expected)  # labelled once (unobserved, free, occupied) for every score
+            oracle_accuracy, wall_consistency = oracle_scores_of_labels(mine, self._seen, self.geometry.resolution)
+            ate = absolute_trajectory_error(self.slam.paths[self.slam.best], self.episode.true_poses_at_updates,
+                                            align=False)
+            self._scores = {"map_accuracy": accuracy_of_labels(mine, self.truth.grid),
+                            "oracle_accuracy": oracle_accuracy, "wall_consistency": wall_consistency, "ate": ate}
+        return dict(self._scores)
+
+    def _measures(self) -> dict[str, float]:
+        """What the rewards read now (:attr:`StepRewards.reads`): the filter's certainty, the coverage, and the
+        ground-truth scores only if a reward reads one."""
+        m, measures = self._metrics, {}
+        for name in self._rewards.reads:
+            if name in FILTER_MEASURES:
+                measures[name] = getattr(m, name)
+            elif name == "coverage":
+                measures[name] = self._coverage
+            else:
+                measures[name] = self.ground_truth_scores()[name]
+        return measures
 
     def watch_updates(self, watcher) -> None:
         """Call ``watcher(slam, true_pose)`` after every filter update of the episodes from the next
@@ -267,16 +299,18 @@ class EmmiEnv(gym.Env):
 
     # ------------------------------------------------------------------ info, rendering
 
-    def _info(self, components: dict) -> dict:
+    def _info(self, components: dict, end: bool) -> dict:
+        """The measures now, the ground-truth scores at the episode's ``end`` (or always, if asked), the rewards'
+        components and which of them read the ground truth."""
         m = self._metrics
+        scores = self.ground_truth_scores() if end or self.config.info_scores == "always" else {}
         return {
             "emmi": m.emmi, "map_information": m.map_information, "mean_information_best": m.mean_information_best,
             "pose_entropy": m.pose_entropy,
             "weight_entropy": m.weight_entropy, "path_entropy": m.path_entropy, "joint_entropy": m.joint_entropy,
-            "neff": m.neff, "resampled": m.resampled, "coverage": self._coverage,
-            "map_accuracy": self._map_accuracy, "oracle_accuracy": self._oracle_accuracy,
-            "wall_consistency": self._wall_consistency, "ate": self._ate, "collisions": self.collisions,
-            "sim_steps": self.sim_steps, "reward_components": dict(components), "world": self.world.name,
+            "neff": m.neff, "resampled": m.resampled, "coverage": self._coverage, **scores,
+            "collisions": self.collisions, "sim_steps": self.sim_steps, "reward_components": dict(components),
+            "privileged_rewards": list(self._rewards.privileged), "world": self.world.name,
             **({"rbpf_updates": self.episode.take_update_records()} if self.config.update_records else {}),
         }
 

@@ -67,19 +67,20 @@ def test_an_older_version_is_refused_naming_the_current_one(name):
 
 
 def test_spaces_and_info():
-    env = gym.make("emmi_gym/LoopCorridor-v1", **SMALL)
+    env = gym.make("emmi_gym/LoopCorridor-v1", **SMALL, info_rewards="all", info_scores="always")
     obs, info = env.reset(seed=1)
     assert obs["map"].shape == (2, 64, 64) and obs["map"].dtype == np.uint8
     assert env.observation_space.contains(obs)
     for key in ("emmi", "map_information", "mean_information_best", "pose_entropy", "weight_entropy", "path_entropy",
                 "joint_entropy", "neff", "resampled", "coverage", "map_accuracy", "oracle_accuracy", "wall_consistency",
-                "ate", "collisions", "sim_steps", "reward_components"):
+                "ate", "collisions", "sim_steps", "reward_components", "privileged_rewards"):
         assert key in info
     assert "rbpf_updates" not in info  # only with update_records
     before = info
     obs, reward, terminated, truncated, info = env.step(frontier_action(env))
-    assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage",
-                                              "emmi_coverage", "map_information", "time", "collision"}
+    assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage",
+                                              "map_information", "oracle_accuracy", "wall_consistency", "ate",
+                                              "time", "collision"}
     gained = info["map_information"] - before["map_information"]
     assert gained > 100 and info["reward_components"]["map_information"] == pytest.approx(1e-3 * gained)
     expected = info["reward_components"]["emmi"] + info["reward_components"]["time"] + \
@@ -88,6 +89,8 @@ def test_spaces_and_info():
     assert info["sim_steps_this_step"] > 10 and info["target_kind"] == "frontier"
     image = gym.make("emmi_gym/LoopCorridor-v1", observation="image", obs_size=48, **SMALL)
     assert image.observation_space.shape == (2, 48, 48)
+    _, info = image.reset(seed=1)  # by default, the reward paid alone and no ground-truth score before the end
+    assert set(info["reward_components"]) == {"emmi", "time", "collision"} and "oracle_accuracy" not in info
 
 
 def test_update_records_list_every_update_and_change_nothing_else():
@@ -95,7 +98,7 @@ def test_update_records_list_every_update_and_change_nothing_else():
     the certainty is measured once per step: the same episode, the same figures."""
     runs = []
     for records in (False, True):
-        env = gym.make("emmi_gym/LoopCorridor-v1", update_records=records, **SMALL)
+        env = gym.make("emmi_gym/LoopCorridor-v1", update_records=records, info_scores="always", **SMALL)
         _, info = env.reset(seed=3)
         steps = [info]
         for _ in range(2):
@@ -215,8 +218,9 @@ def test_async_vector_env_and_sb3_subproc_spawn():
 
 @pytest.mark.parametrize("options, message", [
     (dict(colour="red"), r"gym.make: field 'colour': expected one of the known options \[.*'reward'"),
-    (dict(reward="fun"), r"field 'reward': expected one of \['emmi', 'pose_entropy', 'joint_entropy', 'coverage', "
-                         r"'emmi_coverage', 'map_information'\], got 'fun'"),
+    (dict(reward="fun"), r"field 'reward': expected a registered reward's name \(one of \['emmi', 'pose_entropy', "
+                         r"'joint_entropy', 'coverage', 'emmi_coverage', 'map_information'.*\) or a Reward, "
+                         r"got 'fun'"),
     (dict(action_mode="teleport"), r"expected one of \['waypoint', 'velocity'\]"),
     (dict(particles=0), r"field 'particles': expected an integer in \[1, 1000\]"),
     (dict(laser={"beams": 10}), r"field 'laser.beams': expected one of the known options \['fov', 'n_beams'"),
@@ -345,7 +349,7 @@ def test_spinning_in_place_farms_emmi_but_not_emmi_coverage():
     the same rise pays little; standing still pays exactly the time cost under every variant."""
     spin, still = {}, {}
     for returns, command in ((spin, (0.0, 1.0)), (still, (0.0, 0.0))):
-        env = gym.make("emmi_gym/ExplorePlans-v1", action_mode="velocity", max_sim_steps=150)
+        env = gym.make("emmi_gym/ExplorePlans-v1", action_mode="velocity", max_sim_steps=150, info_rewards="all")
         env.reset(seed=0)
         done = False
         while not done:
@@ -686,6 +690,6 @@ def test_map_accuracy_is_defined_when_nothing_is_known_to_both():
     from emmi_gym.scoring.scores import map_accuracy
 
     assert map_accuracy(np.full((4, 4), 0.5), np.ones((4, 4), dtype=np.int8)) == 0.0
-    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL, laser={"max_range": 0.3}).unwrapped
+    env = gym.make("emmi_gym/ExploreVelocity-v0", **SMALL, laser={"max_range": 0.3}, info_scores="always").unwrapped
     _, info = env.reset(seed=1)
     assert np.isfinite(info["map_accuracy"])

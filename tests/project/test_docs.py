@@ -20,7 +20,7 @@ from helpers import ROOT
 
 import emmi_gym
 import emmi_gym.tools.cli
-from emmi_gym.env.config import REWARD_SCALES, REWARDS
+from emmi_gym.env import REWARDS
 from emmi_gym.env.registration import ENV_IDS
 
 DOCS = ROOT / "docs"
@@ -154,12 +154,14 @@ def test_every_public_module_has_an_api_page():
     assert not gone, f"docs/api/*.md documents modules that do not exist: {gone}"
 
 
-def test_the_rewards_page_states_every_variant_with_its_scale():
+def test_the_rewards_page_states_every_registered_reward_with_what_it_reads_and_its_scale():
     text = (DOCS / "rewards.md").read_text()
-    for name in REWARDS:
-        row = re.search(rf'^\| `"{name}"`(?: \(default\))? \|.*\| ([^|]+) \|$', text, re.M)
+    for name, reward in REWARDS.items():
+        row = re.search(rf'^\| `"{name}"`(?: \(default\))? \| ([^|]+) \|.*\| ([^|]+) \|$', text, re.M)
         assert row, f'docs/rewards.md has no row for the reward "{name}"'
-        assert float(row.group(1)) == REWARD_SCALES[name], f"docs/rewards.md: {name}'s scale is {REWARD_SCALES[name]}"
+        reads = "ground truth (privileged)" if reward.privileged else "filter"
+        assert row.group(1) == reads, f"docs/rewards.md: {name} reads the {reads}"
+        assert float(row.group(2)) == reward.scale, f"docs/rewards.md: {name}'s scale is {reward.scale:g}"
 
 
 def test_the_info_page_states_every_key():
@@ -247,11 +249,14 @@ def test_make_your_own_has_its_four_examples():
 
 @pytest.fixture
 def restore_registry():
-    """The Gymnasium registry as it was: an example that registers an id leaves nothing behind."""
-    before = set(gym.registry)
+    """The Gymnasium registry and the rewards' as they were: an example that registers an id or a reward leaves
+    nothing behind."""
+    before, rewards = set(gym.registry), dict(REWARDS)
     yield
     for env_id in set(gym.registry) - before:
         del gym.registry[env_id]
+    REWARDS.clear()
+    REWARDS.update(rewards)
 
 
 @pytest.mark.parametrize("name", EXAMPLES)

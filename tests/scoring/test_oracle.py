@@ -84,7 +84,7 @@ def test_a_doubled_wall_lowers_wall_consistency_not_just_accuracy():
 
 
 def test_env_reports_oracle_scores():
-    env = gym.make("emmi_gym/LoopCorridor-v1", max_decisions=2)
+    env = gym.make("emmi_gym/LoopCorridor-v1", max_decisions=2, info_scores="always")
     _, info = env.reset(seed=0)
     for _ in range(2):
         _, _, _, _, info = env.step(0)

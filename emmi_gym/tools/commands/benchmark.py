@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     import time
 
     from ...concurrency.ray_cluster import LOCAL
-    from ...env.config import REWARDS
+    from ...env.reward_registry import REWARDS
     from ...inputs.user_paths import output_folder
     from ..training.config import load_agent_config
     from ..training.reward_benchmark import run_benchmark, write_benchmark

@@ -26,7 +26,7 @@ from ...formats.atomic_files import write_atomically
 from ...world.map_sets import map_set_files, world_name
 from ..experiments.directions import better_side, count_better, format_number
 from ..policies import make_policy
-from .episodes import PolicyActor, play_episode, summarise
+from .episodes import PolicyActor, info_options, play_episode, summarise
 from .intervals import difference_interval, measure_interval
 from .loop_order import LOOP_ORDER_KEY, LoopOrderInfo
 from .robot_time import TRACE
@@ -46,9 +46,11 @@ class ComparisonSettings:
     env_id: str = "emmi_gym/ExplorePlans-v1"
     env_options: dict = field(default_factory=dict)
 
-    def env_on(self, world) -> gym.Env:
-        """The comparison's env with ``world``, reporting each episode's loop order."""
-        return LoopOrderInfo(gym.make(self.env_id, **dict(self.env_options, world=world)))
+    def env_on(self, world, keep_steps: bool = False, keep_trace: bool = False) -> gym.Env:
+        """The comparison's env with ``world``, reporting each episode's loop order (and with ``keep_steps`` and
+        ``keep_trace`` what :func:`~emmi_gym.tools.experiments.episodes.play_episode` keeps of each step)."""
+        options = dict(self.env_options, world=world, **info_options(keep_steps, keep_trace))
+        return LoopOrderInfo(gym.make(self.env_id, **options))
 
 
 def policy_name(policy) -> str:
@@ -68,7 +70,7 @@ def play_on_world(world, seed: int, policy, settings: ComparisonSettings = Compa
     ``seed``: its final scores (with ``keep_maps``, the expected map, the oracle map and the grid's
     extent; with ``keep_steps``, every step's reward components; with ``keep_trace``, the scores after
     every decision: see :func:`emmi_gym.tools.experiments.episodes.play_episode`)."""
-    env = settings.env_on(world)
+    env = settings.env_on(world, keep_steps, keep_trace)
     core = env.unwrapped
     scores = play_episode(env, make_actor(policy), seed, keep_steps=keep_steps, keep_trace=keep_trace)
     row = {"world": world_name(world), "plan": core.world.name, "seed": seed, "policy": policy_name(policy),

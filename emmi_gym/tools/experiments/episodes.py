@@ -7,11 +7,19 @@ import math
 import numpy as np
 
 from .loop_order import LOOP_ORDER_KEY
-from .robot_time import TRACE, trace_point
+from .robot_time import TRACE, TRACED, trace_point
 
 #: What an episode's last ``info`` says against the ground truth (and the certainty it ended with).
 GROUND_TRUTH = ("coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate", "emmi", "pose_entropy",
                 "joint_entropy", "collisions", "sim_steps")
+
+
+def info_options(keep_steps: bool = False, keep_trace: bool = False) -> dict:
+    """The ``gym.make`` options under which :func:`play_episode` can keep what it is asked to: every registered
+    reward in each step's ``info`` (``keep_steps``: what any reward would have paid) and the ground-truth scores
+    after the reset and every step (``keep_trace``: what reads the map at equal robot time). The env measures
+    neither unasked; the episodes are the same either way."""
+    return {**({"info_rewards": "all"} if keep_steps else {}), **({"info_scores": "always"} if keep_trace else {})}
 
 
 class ModelActor:
@@ -59,9 +67,13 @@ def play_episode(env, actor, seed: int, keep_steps: bool = False, keep_trace: bo
     simulator steps (what any reward variant, time cost and discount would have paid), the kind of
     target it chose and where that target was (``target_xy``, in the map's frame). With ``keep_trace``,
     ``trace`` lists the ground-truth scores at the reset and after every step, with the robot time
-    (:func:`emmi_gym.tools.experiments.robot_time.trace_point`): what reads the map at equal robot time.
+    (:func:`emmi_gym.tools.experiments.robot_time.trace_point`): what reads the map at equal robot time. Both
+    need ``env`` made with :func:`info_options` (a ``ValueError`` says so at the reset otherwise).
     """
     observation, info = env.reset(seed=seed)
+    if keep_trace and any(k not in info for k in TRACED):
+        raise ValueError("keep_trace reads the ground-truth scores after every step: make the env with "
+                         "info_scores='always' (info_options(keep_trace=True))")
     actor.reset(seed)
     total, steps, revisits, terminated, truncated = 0.0, 0, 0, False, False
     kept, trace = [], [trace_point(info)] if keep_trace else None

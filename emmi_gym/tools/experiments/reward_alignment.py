@@ -18,6 +18,10 @@ episode ended with:
 - **paired against a policy** (:func:`paired_returns`): each policy's return minus that policy's on the
   same episodes, with its 95% interval: whether a mean return's lead is more than the episodes' spread.
 
+Given what each reward reads (``reads``: the filter, or the ground truth for a privileged reward, as the
+env's reward registry says), the tables say it beside each reward: a privileged reward's agreement is what
+training with the truth as teacher could reach, a filter-side one's what a reward a real robot could compute.
+
 A reward's scale and the time cost act only through their ratio, so varying the time cost covers
 the scales too. Discounts follow :mod:`emmi_gym.tools.training.semi_markov`: ``gamma`` per decision or
 per ``unit`` simulator steps of robot time.
@@ -26,6 +30,7 @@ per ``unit`` simulator steps of robot time.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from itertools import combinations
 
@@ -127,10 +132,12 @@ def _within_correlation(episodes, returns, quality: str) -> float:
     return float(np.corrcoef(x, y)[0, 1])
 
 
-def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple(QUALITIES)) -> list[dict]:
+def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple(QUALITIES),
+              reads: Mapping[str, str] | None = None) -> list[dict]:
     """One result per (variant, time cost, discount) over the episodes of ``rows`` (rows with ``steps``):
     each policy's mean return, the agreement and within-episode correlation for each quality, and
-    the preferred policy."""
+    the preferred policy; with ``reads`` (what each variant reads: ``"filter"``, ``"ground truth"``), a
+    ``reads`` column beside the reward."""
     episodes = _episodes(rows)
     policies = list(dict.fromkeys(row["policy"] for row in rows))
     results = []
@@ -139,7 +146,8 @@ def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple
             for discount in discounts:
                 returns = _returns(episodes, variant, time_cost, discount)
                 means = {p: float(np.mean([v for (_, q), v in returns.items() if q == p])) for p in policies}
-                result = {"reward": variant, "time_cost": time_cost, "discount": discount.label,
+                result = {"reward": variant, **({"reads": reads.get(variant, "-")} if reads is not None else {}),
+                          "time_cost": time_cost, "discount": discount.label,
                           **{f"return {p}": means[p] for p in policies},
                           "prefers": max(means, key=means.get)}
                 for quality in qualities:
@@ -180,15 +188,17 @@ def paired_returns(rows: list[dict], variants, time_costs, discounts, against: s
     return results
 
 
-def paired_markdown(results: list[dict], against: str) -> str:
+def paired_markdown(results: list[dict], against: str, privileged=()) -> str:
     """:func:`paired_returns` as a markdown table: a row per policy, a column per return (reward, time cost,
-    discount), each cell the mean difference and its interval, as a page compares many policies."""
+    discount; a reward of ``privileged`` marked so), each cell the mean difference and its interval, as a page
+    compares many policies."""
     returns = list(dict.fromkeys((r["reward"], r["time_cost"], r["discount"]) for r in results))
     cells = {(r["policy"], (r["reward"], r["time_cost"], r["discount"])):
              f"{_format(r['difference'])} [{_format(r['low'])}, {_format(r['high'])}]" for r in results}
     lines = [f"Return minus {against}'s on the same episodes, mean [95% interval]:", "",
-             "| policy | episodes | " + " | ".join(f"{reward}, {time_cost:g}, {discount}"
-                                                   for reward, time_cost, discount in returns) + " |",
+             "| policy | episodes | " + " | ".join(
+                 f"{reward}{' (privileged)' if reward in privileged else ''}, {time_cost:g}, {discount}"
+                 for reward, time_cost, discount in returns) + " |",
              "| --- | --- |" + " --- |" * len(returns)]
     for policy in dict.fromkeys(r["policy"] for r in results):
         episodes = max(r["episodes"] for r in results if r["policy"] == policy)

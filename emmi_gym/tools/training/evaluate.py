@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ...env.seeds import HELD_OUT_SEED
 from ..experiments.directions import better_side, format_number
-from ..experiments.episodes import ModelActor, play_episodes
+from ..experiments.episodes import ModelActor, info_options, play_episodes
 from .run_folders import RunFolder
 from .run_folders.model_files import load_model_file
 from .train import make_agent_env
@@ -67,7 +67,8 @@ def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, 
     (:func:`~emmi_gym.tools.experiments.episodes.play_episode`)."""
     model_path = Path(model_path)
     model, config = load_model(model_path, config)
-    env = make_agent_env(config.env_id, config.eval_env_kwargs, render_mode="rgb_array" if video_dir else None)
+    env = make_agent_env(config.env_id, {**config.eval_env_kwargs, **info_options(keep_trace=keep_trace)},
+                         render_mode="rgb_array" if video_dir else None)
     if video_dir is not None:
         from gymnasium.wrappers import RecordVideo
 

@@ -28,7 +28,7 @@ from ...concurrency.ray_cluster import connect_ray
 from ...formats.atomic_files import write_atomically, write_text_atomically
 from ..experiments.comparison import make_actor, policy_name
 from ..experiments.directions import better_side, format_number
-from ..experiments.episodes import nanmean, play_episodes
+from ..experiments.episodes import info_options, nanmean, play_episodes
 from ..experiments.intervals import difference_interval, measure_interval
 from ..experiments.loop_order import LOOP_ORDER_KEY
 from ..experiments.report import write_csv
@@ -98,7 +98,7 @@ def run_job(job: Job) -> dict:
                 curve = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
     else:
         trained = False
-        env = make_agent_env(job.config.env_id, job.config.eval_env_kwargs)
+        env = make_agent_env(job.config.env_id, {**job.config.eval_env_kwargs, **info_options(keep_trace=True)})
         try:
             rows = play_episodes(env, make_actor(job.policy), range(job.episode_seed, job.episode_seed + job.episodes),
                                  keep_trace=True)

@@ -58,6 +58,20 @@ def test_agreement_and_correlation_rank_the_better_map_against_the_higher_return
     assert "| coverage | 0.01 | none |" in markdown(list(results.values()), policy_front(rows), "t")
 
 
+def test_the_tables_say_what_each_reward_reads():
+    rows = [episode(w, p, q, 0.3, [dict(step(emmi=e), ate=a)]) for w, p, q, e, a in
+            (("a", "base", 0.80, 1.0, 0.1), ("a", "agent", 0.90, 0.5, 0.3), ("b", "base", 0.70, 2.0, 0.0),
+             ("b", "agent", 0.75, 2.5, 0.2))]
+    reads = {"emmi": "filter", "ate": "ground truth"}
+    results = alignment(rows, ["emmi", "ate"], [0.0], [Discount()], reads=reads)
+    assert [(r["reward"], r["reads"]) for r in results] == [("emmi", "filter"), ("ate", "ground truth")]
+    assert "| ate | ground truth | 0 | none |" in markdown(results, policy_front(rows), "t")
+    assert "reads" not in alignment(rows, ["emmi"], [0.0], [Discount()])[0]
+    paired = paired_returns(rows, ["emmi", "ate"], [0.0], [Discount()], "base")
+    assert "| policy | episodes | emmi, 0, none | ate (privileged), 0, none |" in \
+        paired_markdown(paired, "base", privileged=("ate",))
+
+
 def test_returns_paired_with_a_policy_give_the_difference_on_each_episode_and_its_interval():
     rows = [episode(w, p, 0.9, 0.2, [step(emmi=e)]) for w, p, e in
             (("a", "base", 1.0), ("a", "agent", 1.5), ("b", "base", 2.0), ("b", "agent", 2.1), ("c", "base", 0.0),

@@ -3,7 +3,8 @@ same world and seed read at the robot time the shorter took."""
 
 import pytest
 
-from emmi_gym.tools.experiments.comparison import ComparisonSettings, markdown_table, play_on_world
+from emmi_gym.tools.experiments.comparison import ComparisonSettings, make_actor, markdown_table, play_on_world
+from emmi_gym.tools.experiments.episodes import info_options, play_episode
 from emmi_gym.tools.experiments.robot_time import (
     TRACE,
     TRACED,
@@ -63,3 +64,15 @@ def test_an_episodes_trace_starts_at_the_reset_and_ends_at_its_final_scores():
     # a trace file's points give each episode its trace back, matched on world, seed and policy
     assert with_traces(without_traces(rows), long_form) == rows
     assert TRACE not in with_traces(without_traces([{**rows[0], "seed": 9}]), long_form)[0]
+
+
+def test_a_trace_needs_the_scores_after_every_step_which_the_env_gives_when_asked():
+    """The env measures the ground-truth scores for the episode's last info alone unless asked: a trace asks, and
+    a trace from an env that was not asked is refused at the reset rather than read from figures that are not
+    there."""
+    env = SMALL.env_on(None)
+    with pytest.raises(ValueError, match="make the env with info_scores='always'"):
+        play_episode(env, make_actor("frontier"), 8, keep_trace=True)
+    assert info_options(keep_trace=True) == {"info_scores": "always"}
+    assert info_options(keep_steps=True) == {"info_rewards": "all"}
+    assert "oracle_accuracy" in SMALL.env_on(None, keep_trace=True).reset(seed=8)[1]
