@@ -40,8 +40,9 @@ def public_host(address: str) -> str | None:
 def ray_init_arguments(address: str | None, environ=None) -> dict:
     """The keywords of ``ray.init`` that :func:`connect_ray` passes for ``address``: no dashboard, Ray's logs kept
     out of the terminal, and for a Ray instance started on this machine (``"local"``, or ``None`` where the
-    ``environ`` (default ``os.environ``) sets no ``RAY_ADDRESS``) a new instance whose node, GCS and raylet bind
-    the loopback address only (:data:`LOOPBACK`): a Ray cluster has no authentication."""
+    ``environ`` (default ``os.environ``) sets no ``RAY_ADDRESS``) a new instance (Ray's ``address="local"``: never
+    the cluster an earlier ``ray start``, or one killed uncleanly, left its address for) whose node, GCS and
+    raylet bind the loopback address only (:data:`LOOPBACK`; a Ray cluster has no authentication)."""
     environ = os.environ if environ is None else environ
     arguments = {"address": address, "include_dashboard": False, "logging_level": "ERROR", "log_to_driver": False}
     if address == LOCAL or (address is None and not environ.get("RAY_ADDRESS")):
@@ -50,11 +51,11 @@ def ray_init_arguments(address: str | None, environ=None) -> dict:
 
 
 def connect_ray(address: str | None = LOCAL):
-    """Connect to the Ray cluster at ``address`` (``"local"``: start one on this machine, bound to the loopback
-    address; ``None``: the ``RAY_ADDRESS`` environment variable, else a local instance) unless this
-    process is connected already, with a warning if the address is not a private or loopback one (a Ray
-    cluster has no authentication: whoever reaches its ports runs code on its nodes). Returns ``(ray,
-    started_here)``: the caller shuts down what it started."""
+    """Connect to the Ray cluster at ``address`` (``"local"``: start a new one on this machine, bound to the
+    loopback address; ``None``: the ``RAY_ADDRESS`` environment variable, else a local instance) unless this
+    process is connected already, with a warning if the address is not a private or loopback one (a Ray cluster
+    has no authentication: whoever reaches its ports runs code on its nodes). Returns ``(ray, started_here)``:
+    the caller shuts down what it started."""
     arguments = ray_init_arguments(address)
     local = "_node_ip_address" in arguments
     if local and "ray" not in sys.modules:  # before Ray is imported, here and in the processes it starts

@@ -1,4 +1,4 @@
-"""Connecting to Ray: a Ray instance started on this machine binds the loopback address only."""
+"""Connecting to Ray: a Ray instance started on this machine is a new one and binds the loopback address only."""
 
 import ipaddress
 from pathlib import Path
@@ -41,7 +41,7 @@ def listening() -> set[tuple[str, int]]:
 
 #: Run in a fresh interpreter: Ray reads its switch for one machine when it is imported (another test may have).
 LOCAL_INSTANCE = """
-import ipaddress, sys
+import ipaddress, json
 from test_ray_cluster import listening
 from emmi_gym.concurrency.ray_cluster import connect_ray
 before = listening()
@@ -49,27 +49,45 @@ ray, started = connect_ray("local")
 try:
     opened = listening() - before
     nodes = [node["NodeManagerAddress"] for node in ray.nodes()]
+    gcs = ray.get_runtime_context().gcs_address
 finally:
     ray.shutdown()
 wide = [(host, port) for host, port in opened if not (lambda ip: (getattr(ip, "ipv4_mapped", None) or ip).is_loopback)(
     ipaddress.ip_address(host))]
-print(started, nodes, len(opened), wide)
+print(json.dumps({"started": started, "nodes": nodes, "opened": len(opened), "wide": wide, "gcs": gcs}))
 """
+#: The address an uncleanly killed Ray left in its address file: a cluster no longer there.
+STALE_ADDRESS = "127.0.0.1:9"
 
 
 @pytest.mark.slow
-def test_a_local_ray_instance_listens_on_the_loopback_address_only():
+def test_a_local_ray_instance_is_new_and_on_the_loopback_address_only():
+    """A new instance whatever a leftover address file names (the file ``ray.init()`` joins: here in a
+    ``RAY_TMPDIR`` of its own, not the machine's ``/tmp/ray``), which listens on the loopback address only."""
+    import json
     import os
+    import shutil
     import subprocess
     import sys
+    import tempfile
 
     pytest.importorskip("ray")
     if not Path("/proc/net/tcp").exists():
         pytest.skip("needs Linux's /proc/net/tcp")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
-    env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
-    done = subprocess.run([sys.executable, "-c", LOCAL_INSTANCE], capture_output=True, text=True, env=env,
-                          timeout=300)
+    temp = Path(tempfile.mkdtemp(prefix="ray"))  # short: Ray's socket paths must fit in 107 bytes
+    try:
+        (temp / "ray").mkdir()
+        (temp / "ray" / "ray_current_cluster").write_text(STALE_ADDRESS)
+        env = dict(os.environ, RAY_TMPDIR=str(temp),
+                   PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
+        env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
+        env.pop("RAY_ADDRESS", None)
+        done = subprocess.run([sys.executable, "-c", LOCAL_INSTANCE], capture_output=True, text=True, env=env,
+                              timeout=300)
+        sessions = list((temp / "ray").glob("session_*"))
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)
     assert done.returncode == 0, done.stderr[-2000:]
-    started, nodes, opened, wide = done.stdout.strip().splitlines()[-1].split(" ", 3)
-    assert (started, nodes, wide) == ("True", f"['{LOOPBACK}']", "[]") and int(opened) > 0, done.stdout
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert sessions and seen["started"] and seen["gcs"] != STALE_ADDRESS  # Ray's files went there: a new instance
+    assert seen["nodes"] == [LOOPBACK] and seen["wide"] == [] and seen["opened"] > 0

@@ -3,11 +3,14 @@ actions; processes, a local Ray instance and a two-node Ray cluster give the sam
 seeds; training with them saves, resumes, starts from another model and stops on Ctrl-C as before."""
 
 import copy
+import shutil
+import tempfile
 
 import numpy as np
 import pytest
 import torch as th
 import yaml
+from helpers import start_local_ray
 from stable_baselines3.common.callbacks import BaseCallback
 
 from emmi_gym.concurrency.parallel import ActorFailed
@@ -140,17 +143,20 @@ def ray():
 @pytest.mark.slow
 @pytest.mark.parametrize("policy_lag", [0, 1])
 def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray, policy_lag):
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    start_local_ray()
     data = agent(MASKED, policy_lag=policy_lag)
     same_rollouts(collect(data, "workers", 3)[1], collect(data, "ray_workers", 3)[1])
 
 
 @pytest.mark.slow
-def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray):
+def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray, monkeypatch):
     """Two nodes of one CPU each, as Ray's own tests make a cluster on one machine: the two workers (one CPU
-    each) can only run one on each node."""
+    each) can only run one on each node. The cluster's files (the address file ``ray.init()`` would join among
+    them) go to a folder of its own, not the machine's ``/tmp/ray``."""
     from ray.cluster_utils import Cluster
 
+    temp = tempfile.mkdtemp(prefix="ray")  # short: Ray's socket paths must fit in 107 bytes
+    monkeypatch.setenv("RAY_TMPDIR", temp)
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
     try:
         cluster.add_node(num_cpus=1)
@@ -167,6 +173,7 @@ def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray):
     finally:
         ray.shutdown()
         cluster.shutdown()
+        shutil.rmtree(temp, ignore_errors=True)
 
 
 @pytest.mark.slow
