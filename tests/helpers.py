@@ -60,7 +60,7 @@ def start_as_a_terminal_would(args, **kwargs) -> subprocess.Popen:
 def start_local_ray(num_cpus: int = 2):
     """Ray, with a new local instance of ``num_cpus`` CPUs (whatever the machine has) started as
     ``emmi_gym.concurrency.ray_cluster.connect_ray("local")`` starts one: never the cluster a leftover address
-    file names."""
+    file names, its workers at this process's priority."""
     import ray
 
     from emmi_gym.concurrency.ray_cluster import ray_init_arguments

@@ -14,6 +14,7 @@ from helpers import start_local_ray
 from stable_baselines3.common.callbacks import BaseCallback
 
 from emmi_gym.concurrency.parallel import ActorFailed
+from emmi_gym.concurrency.ray_cluster import LOCAL_SYSTEM_CONFIG
 from emmi_gym.tools.training.config import AgentConfigError, parse_agent_config
 from emmi_gym.tools.training.evaluate import evaluate_model
 from emmi_gym.tools.training.rollout_workers import RolloutWorkers
@@ -157,7 +158,8 @@ def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray, monkey
 
     temp = tempfile.mkdtemp(prefix="ray")  # short: Ray's socket paths must fit in 107 bytes
     monkeypatch.setenv("RAY_TMPDIR", temp)
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False,
+                                                            "_system_config": LOCAL_SYSTEM_CONFIG})
     try:
         cluster.add_node(num_cpus=1)
         ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
