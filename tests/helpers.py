@@ -1,8 +1,12 @@
 """Assertions and paths shared by the test modules (``pythonpath = ["tests"]`` in pyproject.toml makes this
 module importable from every folder of tests/)."""
 
+import shutil
 import signal
 import subprocess
+import tempfile
+import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +71,19 @@ def start_local_ray(num_cpus: int = 2):
 
     ray.init(**ray_init_arguments("local", {}), num_cpus=num_cpus)
     return ray
+
+
+@contextmanager
+def ray_temp_dir():
+    """A new folder for Ray's files (as ``RAY_TMPDIR``: its sessions and the address file ``ray.init()`` joins),
+    short enough for Ray's socket paths (107 bytes at most), removed after the block, with what Ray's processes
+    still write into it as they end (a single ``rmtree`` can leave their folders)."""
+    temp = Path(tempfile.mkdtemp(prefix="ray"))
+    try:
+        yield temp
+    finally:
+        for _ in range(50):
+            shutil.rmtree(temp, ignore_errors=True)
+            if not temp.exists():
+                break
+            time.sleep(0.2)

@@ -70,16 +70,15 @@ def test_a_local_ray_instance_is_new_on_the_loopback_address_only_and_its_worker
     runs its workers at the niceness of the process that started it (Ray's default: 15 more)."""
     import json
     import os
-    import shutil
     import subprocess
     import sys
-    import tempfile
+
+    from helpers import ray_temp_dir
 
     pytest.importorskip("ray")
     if not Path("/proc/net/tcp").exists():
         pytest.skip("needs Linux's /proc/net/tcp")
-    temp = Path(tempfile.mkdtemp(prefix="ray"))  # short: Ray's socket paths must fit in 107 bytes
-    try:
+    with ray_temp_dir() as temp:
         (temp / "ray").mkdir()
         (temp / "ray" / "ray_current_cluster").write_text(STALE_ADDRESS)
         env = dict(os.environ, RAY_TMPDIR=str(temp),
@@ -89,8 +88,6 @@ def test_a_local_ray_instance_is_new_on_the_loopback_address_only_and_its_worker
         done = subprocess.run([sys.executable, "-c", LOCAL_INSTANCE], capture_output=True, text=True, env=env,
                               timeout=300)
         sessions = list((temp / "ray").glob("session_*"))
-    finally:
-        shutil.rmtree(temp, ignore_errors=True)
     assert done.returncode == 0, done.stderr[-2000:]
     seen = json.loads(done.stdout.strip().splitlines()[-1])
     assert sessions and seen["started"] and seen["gcs"] != STALE_ADDRESS  # Ray's files went there: a new instance

@@ -3,14 +3,12 @@ actions; processes, a local Ray instance and a two-node Ray cluster give the sam
 seeds; training with them saves, resumes, starts from another model and stops on Ctrl-C as before."""
 
 import copy
-import shutil
-import tempfile
 
 import numpy as np
 import pytest
 import torch as th
 import yaml
-from helpers import start_local_ray
+from helpers import ray_temp_dir, start_local_ray
 from stable_baselines3.common.callbacks import BaseCallback
 
 from emmi_gym.concurrency.parallel import ActorFailed
@@ -141,6 +139,14 @@ def ray():
     ray.shutdown()
 
 
+@pytest.fixture
+def ray_files(monkeypatch):
+    """Ray's files (``RAY_TMPDIR``) in a folder of the test's own, not the machine's ``/tmp/ray``."""
+    with ray_temp_dir() as temp:
+        monkeypatch.setenv("RAY_TMPDIR", str(temp))
+        yield temp
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("policy_lag", [0, 1])
 def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray, policy_lag):
@@ -150,14 +156,12 @@ def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray, policy_l
 
 
 @pytest.mark.slow
-def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray, monkeypatch):
+def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray, ray_files):
     """Two nodes of one CPU each, as Ray's own tests make a cluster on one machine: the two workers (one CPU
     each) can only run one on each node. The cluster's files (the address file ``ray.init()`` would join among
     them) go to a folder of its own, not the machine's ``/tmp/ray``."""
     from ray.cluster_utils import Cluster
 
-    temp = tempfile.mkdtemp(prefix="ray")  # short: Ray's socket paths must fit in 107 bytes
-    monkeypatch.setenv("RAY_TMPDIR", temp)
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False,
                                                             "_system_config": LOCAL_SYSTEM_CONFIG})
     try:
@@ -175,7 +179,6 @@ def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray, monkey
     finally:
         ray.shutdown()
         cluster.shutdown()
-        shutil.rmtree(temp, ignore_errors=True)
 
 
 @pytest.mark.slow
