@@ -1,8 +1,12 @@
 """Assertions and paths shared by the test modules (``pythonpath = ["tests"]`` in pyproject.toml makes this
 module importable from every folder of tests/)."""
 
+import shutil
 import signal
 import subprocess
+import tempfile
+import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -55,3 +59,31 @@ def start_as_a_terminal_would(args, **kwargs) -> subprocess.Popen:
         return subprocess.Popen(args, **kwargs)
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def start_local_ray(num_cpus: int = 2):
+    """Ray, with a new local instance of ``num_cpus`` CPUs (whatever the machine has) started as
+    ``emmi_gym.concurrency.ray_cluster.connect_ray("local")`` starts one: never the cluster a leftover address
+    file names, its workers at this process's priority."""
+    import ray
+
+    from emmi_gym.concurrency.ray_cluster import ray_init_arguments
+
+    ray.init(**ray_init_arguments("local", {}), num_cpus=num_cpus)
+    return ray
+
+
+@contextmanager
+def ray_temp_dir():
+    """A new folder for Ray's files (as ``RAY_TMPDIR``: its sessions and the address file ``ray.init()`` joins),
+    short enough for Ray's socket paths (107 bytes at most), removed after the block, with what Ray's processes
+    still write into it as they end (a single ``rmtree`` can leave their folders)."""
+    temp = Path(tempfile.mkdtemp(prefix="ray"))
+    try:
+        yield temp
+    finally:
+        for _ in range(50):
+            shutil.rmtree(temp, ignore_errors=True)
+            if not temp.exists():
+                break
+            time.sleep(0.2)

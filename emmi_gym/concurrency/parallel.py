@@ -12,6 +12,8 @@ import time
 import warnings
 from collections.abc import Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, as_completed, wait
+from contextlib import contextmanager
+from multiprocessing import resource_tracker
 
 from .progress import progress_bar
 
@@ -155,12 +157,32 @@ def beat() -> None:
 
 def leave_terminal_signals() -> None:
     """Ignore Ctrl-C and leave the terminal's process group: Ctrl-C, and a SIGTERM sent to the group (``timeout``
-    sends one), reach the parent alone, which stops its work, saves it and closes its workers."""
+    sends one), reach the parent alone, which stops its work, saves it and closes its workers. Then Ctrl-C is
+    unblocked, if this process was started with it blocked (:func:`ctrl_c_held`): one pressed while it started
+    is dropped, ignored."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         os.setpgid(0, 0)
     except OSError:  # a group leader already
         pass
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+@contextmanager
+def ctrl_c_held():
+    """Within the block Ctrl-C (SIGINT) is blocked in this thread, and so in the processes it starts, which keep
+    it blocked until they ignore it (:func:`leave_terminal_signals`): a Ctrl-C sent to the terminal's process
+    group while a worker (or the forkserver that forks :class:`ProcessActor` processes) starts up would stop its
+    interpreter's start-up ("Fatal Python error: init_import_site") or its imports, with a traceback. A blocked
+    signal waits: this process takes a Ctrl-C that came meanwhile when the block ends. Ray starts its processes
+    with SIGINT blocked in the same way. multiprocessing's resource tracker, which the first process of a
+    forkserver or spawn context starts, unblocks SIGINT in the thread that starts it: it is started first."""
+    resource_tracker.ensure_running()
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _serve(connection, factory, args, heartbeat) -> None:
@@ -203,8 +225,9 @@ class ProcessActor:
     ``multiprocessing``): :meth:`submit` starts one of its methods there, :meth:`result` waits for what it
     returned. A failure in the process, or its end, is an :class:`ActorFailed` naming ``name``, never a hang,
     and a call that makes no progress (:func:`beat` in the process) within the heartbeat timeout its result is
-    waited for with is an :class:`ActorStalled`. The process ignores Ctrl-C and leaves the terminal's process
-    group (:func:`leave_terminal_signals`): the parent handles them and closes the actor."""
+    waited for with is an :class:`ActorStalled`. The process ignores Ctrl-C from its start (:func:`ctrl_c_held`)
+    and leaves the terminal's process group (:func:`leave_terminal_signals`): the parent handles them and closes
+    the actor."""
 
     def __init__(self, name: str, factory, *args, start_method: str = ACTOR_START_METHOD):
         context = mp.get_context(start_method)
@@ -213,7 +236,8 @@ class ProcessActor:
         self._connection, child = context.Pipe()
         self.process = context.Process(target=_serve, args=(child, factory, args, self._heartbeat), daemon=True,
                                        name=name)
-        self.process.start()
+        with ctrl_c_held():  # the process starts deaf to a Ctrl-C, which this one handles
+            self.process.start()
         child.close()  # only the process holds its end: its exit ends the pipe, and recv raises EOFError
         self._waiting = True  # for the object to be built
         self._call = "it to be built"  # what is waited for, in words

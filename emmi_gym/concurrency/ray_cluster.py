@@ -22,6 +22,11 @@ LOOPBACK = "127.0.0.1"
 #: one, which its GCS, raylet and workers then bind (Ray turns a ``_node_ip_address`` of 127.0.0.1 into the
 #: machine's reachable address unless it is off; on, they bind every interface).
 SINGLE_MACHINE_VARIABLE = ("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+#: Ray's settings (its ``_system_config``) for a Ray instance started here. Ray runs its workers at a niceness 15
+#: above its raylet's (``worker_niceness``, in Ray's ``ray_config_def.h``), so that on a shared cluster node its
+#: own daemons stay responsive; a local instance is this process's own work, so its workers run at this process's
+#: priority (beside two busy loops on two cores, an actor got 7% of a core at Ray's default, 35% at ours).
+LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0}
 
 
 def public_host(address: str) -> str | None:
@@ -40,21 +45,23 @@ def public_host(address: str) -> str | None:
 def ray_init_arguments(address: str | None, environ=None) -> dict:
     """The keywords of ``ray.init`` that :func:`connect_ray` passes for ``address``: no dashboard, Ray's logs kept
     out of the terminal, and for a Ray instance started on this machine (``"local"``, or ``None`` where the
-    ``environ`` (default ``os.environ``) sets no ``RAY_ADDRESS``) a new instance whose node, GCS and raylet bind
-    the loopback address only (:data:`LOOPBACK`): a Ray cluster has no authentication."""
+    ``environ`` (default ``os.environ``) sets no ``RAY_ADDRESS``) a new instance (Ray's ``address="local"``: never
+    the cluster an earlier ``ray start``, or one killed uncleanly, left its address for) whose node, GCS and
+    raylet bind the loopback address only (:data:`LOOPBACK`; a Ray cluster has no authentication) and whose
+    workers run at this process's priority (:data:`LOCAL_SYSTEM_CONFIG`)."""
     environ = os.environ if environ is None else environ
     arguments = {"address": address, "include_dashboard": False, "logging_level": "ERROR", "log_to_driver": False}
     if address == LOCAL or (address is None and not environ.get("RAY_ADDRESS")):
-        arguments.update(address=LOCAL, _node_ip_address=LOOPBACK)
+        arguments.update(address=LOCAL, _node_ip_address=LOOPBACK, _system_config=dict(LOCAL_SYSTEM_CONFIG))
     return arguments
 
 
 def connect_ray(address: str | None = LOCAL):
-    """Connect to the Ray cluster at ``address`` (``"local"``: start one on this machine, bound to the loopback
-    address; ``None``: the ``RAY_ADDRESS`` environment variable, else a local instance) unless this
-    process is connected already, with a warning if the address is not a private or loopback one (a Ray
-    cluster has no authentication: whoever reaches its ports runs code on its nodes). Returns ``(ray,
-    started_here)``: the caller shuts down what it started."""
+    """Connect to the Ray cluster at ``address`` (``"local"``: start a new one on this machine, bound to the
+    loopback address, its workers at this process's priority; ``None``: the ``RAY_ADDRESS`` environment variable,
+    else a local instance) unless this process is connected already, with a warning if the address is not a
+    private or loopback one (a Ray cluster has no authentication: whoever reaches its ports runs code on its
+    nodes). Returns ``(ray, started_here)``: the caller shuts down what it started."""
     arguments = ray_init_arguments(address)
     local = "_node_ip_address" in arguments
     if local and "ray" not in sys.modules:  # before Ray is imported, here and in the processes it starts

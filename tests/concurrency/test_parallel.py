@@ -2,6 +2,7 @@
 lane's check of its contract; its pools of worker processes are tested in tests/tools/training (slow)."""
 
 import os
+import signal
 
 import pytest
 
@@ -60,3 +61,46 @@ def test_an_input_error_in_a_worker_process_reaches_the_caller_whole():
 
     with pytest.raises(OptionError, match="field 'particles': expected"):
         run_in_processes(_check_particles, [3, -1], workers=2, progress=False)
+
+
+#: Actors started while Ctrl-C is sent to this process's group every few milliseconds (a person pressing it as
+#: the workers start), run in a process group of their own; this process only counts the Ctrl-Cs it takes.
+CTRL_C_WHILE_ACTORS_START = """
+import os, signal, threading, time
+from emmi_gym.concurrency.parallel import ProcessActor
+
+taken = []
+signal.signal(signal.SIGINT, lambda signum, frame: taken.append(signum))
+pressing = threading.Event()
+
+def press():
+    while not pressing.is_set():
+        os.killpg(0, signal.SIGINT)
+        time.sleep(0.002)
+
+threading.Thread(target=press, daemon=True).start()
+actors = [ProcessActor(f"rollout worker {rank}", dict) for rank in range(3)]
+results = [actor.result(heartbeat_timeout=60.0) for actor in actors]
+pressing.set()
+for actor in actors:
+    actor.close(5.0)
+print(results, bool(taken))
+"""
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_actors_start_reaches_only_the_process_that_started_them():
+    import subprocess
+    import sys
+
+    from helpers import start_as_a_terminal_would
+
+    process = start_as_a_terminal_would([sys.executable, "-c", CTRL_C_WHILE_ACTORS_START], stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert "Fatal Python error" not in err and "Traceback" not in err, err[-3000:]
+    assert (process.returncode, out.strip()) == (0, "[None, None, None] True")

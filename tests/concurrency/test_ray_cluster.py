@@ -1,4 +1,5 @@
-"""Connecting to Ray: a Ray instance started on this machine binds the loopback address only."""
+"""Connecting to Ray: a Ray instance started on this machine is a new one, binds the loopback address only and runs
+its workers at the priority of the process that started it."""
 
 import ipaddress
 from pathlib import Path
@@ -10,7 +11,7 @@ from emmi_gym.concurrency.ray_cluster import LOOPBACK, ray_init_arguments
 
 def test_a_local_ray_instance_is_started_on_the_loopback_address_without_a_dashboard():
     local = {"address": "local", "include_dashboard": False, "logging_level": "ERROR", "log_to_driver": False,
-             "_node_ip_address": "127.0.0.1"}
+             "_node_ip_address": "127.0.0.1", "_system_config": {"worker_niceness": 0}}
     assert ray_init_arguments("local", {}) == local
     assert ray_init_arguments(None, {}) == local  # no RAY_ADDRESS: a local instance, as --ray without an address
     assert ray_init_arguments("local", {"RAY_ADDRESS": "10.0.0.2:6379"}) == local
@@ -41,7 +42,7 @@ def listening() -> set[tuple[str, int]]:
 
 #: Run in a fresh interpreter: Ray reads its switch for one machine when it is imported (another test may have).
 LOCAL_INSTANCE = """
-import ipaddress, sys
+import ipaddress, json, os
 from test_ray_cluster import listening
 from emmi_gym.concurrency.ray_cluster import connect_ray
 before = listening()
@@ -49,27 +50,46 @@ ray, started = connect_ray("local")
 try:
     opened = listening() - before
     nodes = [node["NodeManagerAddress"] for node in ray.nodes()]
+    gcs = ray.get_runtime_context().gcs_address
+    niceness = ray.get(ray.remote(num_cpus=1)(lambda: os.nice(0)).remote()) - os.nice(0)
 finally:
     ray.shutdown()
 wide = [(host, port) for host, port in opened if not (lambda ip: (getattr(ip, "ipv4_mapped", None) or ip).is_loopback)(
     ipaddress.ip_address(host))]
-print(started, nodes, len(opened), wide)
+print(json.dumps({"started": started, "nodes": nodes, "opened": len(opened), "wide": wide, "gcs": gcs,
+                  "niceness": niceness}))
 """
+#: The address an uncleanly killed Ray left in its address file: a cluster no longer there.
+STALE_ADDRESS = "127.0.0.1:9"
 
 
 @pytest.mark.slow
-def test_a_local_ray_instance_listens_on_the_loopback_address_only():
+def test_a_local_ray_instance_is_new_on_the_loopback_address_only_and_its_workers_at_our_priority():
+    """A new instance whatever a leftover address file names (the file ``ray.init()`` joins: here in a
+    ``RAY_TMPDIR`` of its own, not the machine's ``/tmp/ray``), which listens on the loopback address only and
+    runs its workers at the niceness of the process that started it (Ray's default: 15 more)."""
+    import json
     import os
     import subprocess
     import sys
 
+    from helpers import ray_temp_dir
+
     pytest.importorskip("ray")
     if not Path("/proc/net/tcp").exists():
         pytest.skip("needs Linux's /proc/net/tcp")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
-    env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
-    done = subprocess.run([sys.executable, "-c", LOCAL_INSTANCE], capture_output=True, text=True, env=env,
-                          timeout=300)
+    with ray_temp_dir() as temp:
+        (temp / "ray").mkdir()
+        (temp / "ray" / "ray_current_cluster").write_text(STALE_ADDRESS)
+        env = dict(os.environ, RAY_TMPDIR=str(temp),
+                   PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
+        env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
+        env.pop("RAY_ADDRESS", None)
+        done = subprocess.run([sys.executable, "-c", LOCAL_INSTANCE], capture_output=True, text=True, env=env,
+                              timeout=300)
+        sessions = list((temp / "ray").glob("session_*"))
     assert done.returncode == 0, done.stderr[-2000:]
-    started, nodes, opened, wide = done.stdout.strip().splitlines()[-1].split(" ", 3)
-    assert (started, nodes, wide) == ("True", f"['{LOOPBACK}']", "[]") and int(opened) > 0, done.stdout
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert sessions and seen["started"] and seen["gcs"] != STALE_ADDRESS  # Ray's files went there: a new instance
+    assert seen["nodes"] == [LOOPBACK] and seen["wide"] == [] and seen["opened"] > 0
+    assert seen["niceness"] == 0

@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 import pytest
-from helpers import assert_same
+from helpers import assert_same, start_local_ray
 
 from emmi_gym.tools.training.config import parse_agent_config
 from emmi_gym.tools.training.train import make_vec_env, train
@@ -27,7 +27,7 @@ def agent_config(**extra) -> dict:
 
 @pytest.fixture(scope="module")
 def local_ray():
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    start_local_ray()
     yield
     ray.shutdown()
 

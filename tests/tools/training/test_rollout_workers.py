@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 import torch as th
 import yaml
+from helpers import ray_temp_dir, start_local_ray
 from stable_baselines3.common.callbacks import BaseCallback
 
 from emmi_gym.concurrency.parallel import ActorFailed
+from emmi_gym.concurrency.ray_cluster import LOCAL_SYSTEM_CONFIG
 from emmi_gym.tools.training.config import AgentConfigError, parse_agent_config
 from emmi_gym.tools.training.evaluate import evaluate_model
 from emmi_gym.tools.training.rollout_workers import RolloutWorkers
@@ -137,21 +139,31 @@ def ray():
     ray.shutdown()
 
 
+@pytest.fixture
+def ray_files(monkeypatch):
+    """Ray's files (``RAY_TMPDIR``) in a folder of the test's own, not the machine's ``/tmp/ray``."""
+    with ray_temp_dir() as temp:
+        monkeypatch.setenv("RAY_TMPDIR", str(temp))
+        yield temp
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("policy_lag", [0, 1])
 def test_processes_and_a_local_ray_instance_give_the_same_rollouts(ray, policy_lag):
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    start_local_ray()
     data = agent(MASKED, policy_lag=policy_lag)
     same_rollouts(collect(data, "workers", 3)[1], collect(data, "ray_workers", 3)[1])
 
 
 @pytest.mark.slow
-def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray):
+def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray, ray_files):
     """Two nodes of one CPU each, as Ray's own tests make a cluster on one machine: the two workers (one CPU
-    each) can only run one on each node."""
+    each) can only run one on each node. The cluster's files (the address file ``ray.init()`` would join among
+    them) go to a folder of its own, not the machine's ``/tmp/ray``."""
     from ray.cluster_utils import Cluster
 
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False,
+                                                            "_system_config": LOCAL_SYSTEM_CONFIG})
     try:
         cluster.add_node(num_cpus=1)
         ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)

@@ -13,6 +13,7 @@ import threading
 import time
 import zipfile
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -299,6 +300,41 @@ def test_sigterm_saves_a_checkpoint_exits_143_and_the_run_resumes_from_it(tmp_pa
     assert resumed.timesteps >= stopped_at + 12
     record = yaml.safe_load((run_dir / "training.yaml").read_text())
     assert record["timesteps"] == resumed.timesteps and record["parts"][0]["end"] == stopped_at
+
+
+def _forkserver_starting(parent: int) -> bool:
+    """Whether a child of ``parent`` is multiprocessing's forkserver (which forks the rollout workers) amid its
+    start-up, with Python's handler of Ctrl-C in place (SIGINT caught; it ignores SIGINT once started)."""
+    for child in Path(f"/proc/{parent}/task/{parent}/children").read_text().split():
+        try:
+            command, status = Path(f"/proc/{child}/cmdline").read_bytes(), Path(f"/proc/{child}/status").read_text()
+        except OSError:  # ended
+            continue
+        caught = next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:"))
+        if b"multiprocessing.forkserver" in command and int(caught, 16) & 1 << (signal.SIGINT - 1):
+            return True
+    return False
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_the_workers_start_is_one_line_with_no_worker_traceback(tmp_path):
+    """Ctrl-C to the terminal's process group while the process that forks the workers starts up."""
+    config = tmp_path / "agent.yaml"
+    config.write_text(yaml.safe_dump(agent(MASKED, total_timesteps=10**6, checkpoint_freq=10**6)))
+    process = start_as_a_terminal_would([sys.executable, "-m", "emmi_gym", "train", config, "--out",
+                                         tmp_path / "run", "--quiet"], stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while process.poll() is None and not _forkserver_starting(process.pid) and time.monotonic() < deadline:
+            time.sleep(0.001)
+        os.killpg(process.pid, signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert "Fatal Python error" not in err and "Traceback" not in err, err[-3000:]
+    assert process.returncode == 130 and err.strip() == "emmi-gym train: interrupted"
 
 
 def test_ctrl_c_before_training_starts_is_one_line(tmp_path, monkeypatch, capsys):

@@ -736,11 +736,16 @@ def test_a_benchmark_extended_to_a_larger_budget_and_stopped_early_trains_on_whe
 def test_saved_decisions_reads_a_model_s_count_and_names_a_file_without_one(tmp_path):
     import zipfile
 
-    from emmi_gym.tools.training.run_folders.model_files import ModelFileError, saved_decisions
+    from emmi_gym.tools.training.run_folders.model_files import ModelFileError, saved_data, saved_decisions
 
     with zipfile.ZipFile(tmp_path / "model.zip", "w") as archive:
-        archive.writestr("data", '{"num_timesteps": 3072}')
+        archive.writestr("data", '{"num_timesteps": 3072, "_n_updates": 240, "policy_class": {":serialized:": "gASV"}}')
     assert saved_decisions(tmp_path / "model.zip") == 3072
+    assert saved_data(tmp_path / "model.zip")["policy_class"] == {":serialized:": "gASV"}  # its pickle left unread
+    with zipfile.ZipFile(tmp_path / "list.zip", "w") as archive:
+        archive.writestr("data", "[3072]")
+    with pytest.raises(ModelFileError, match=r"list.zip.*a JSON object.*list"):
+        saved_data(tmp_path / "list.zip")
     with zipfile.ZipFile(tmp_path / "other.zip", "w") as archive:
         archive.writestr("data", '{"policy_class": {}}')
     with pytest.raises(ModelFileError, match=r"other.zip.*num_timesteps.*None"):

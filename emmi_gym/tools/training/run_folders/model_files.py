@@ -190,12 +190,22 @@ def checked_model_data(path, algorithm: str) -> tuple[Path, dict]:
     return path, data
 
 
-def saved_decisions(path) -> int:
-    """The decisions a model file was trained for (SB3's ``num_timesteps`` in its ``data`` member), read
-    without loading the model; :class:`ModelFileError` naming the file otherwise."""
+def saved_data(path) -> dict:
+    """The ``data`` member of a model file, the JSON that SB3 writes (counts and hyperparameters as they are, the
+    entries it pickles left as their JSON text), read without loading the model or unpickling anything;
+    :class:`ModelFileError` naming the file otherwise."""
     with _model_archive(path) as (archive, path, _):
         data = _data_member(archive, str(path))
-    decisions = data.get("num_timesteps") if isinstance(data, dict) else None
+    if not isinstance(data, dict):
+        raise ModelFileError(str(path), "data", "a Stable-Baselines3 model, whose data is a JSON object",
+                             type(data).__name__)
+    return data
+
+
+def saved_decisions(path) -> int:
+    """The decisions a model file was trained for (SB3's ``num_timesteps`` in its ``data`` member, :func:`saved_data`),
+    read without loading the model; :class:`ModelFileError` naming the file otherwise."""
+    decisions = saved_data(path).get("num_timesteps")
     if not isinstance(decisions, int) or isinstance(decisions, bool) or decisions < 0:
         raise ModelFileError(str(path), "data", "a Stable-Baselines3 model, whose data holds num_timesteps (a count)",
                              repr(decisions))
