@@ -2,11 +2,12 @@
 
 from .config import EnvConfig, deprecated_reward_scales, make_config
 from .emmi_env import EmmiEnv
-from .registration import ENV_IDS, register_envs
+from .registration import ENV_IDS, register_env_file, register_envs
 from .reward_registry import REWARDS, register_reward
 from .rewards import Reward
 
-__all__ = ["ENV_IDS", "REWARDS", "EmmiEnv", "EnvConfig", "Reward", "make_config", "register_envs", "register_reward"]
+__all__ = ["ENV_IDS", "REWARDS", "EmmiEnv", "EnvConfig", "Reward", "make_config", "register_env_file", "register_envs",
+           "register_reward"]
 
 
 def __getattr__(name: str):

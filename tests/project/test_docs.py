@@ -1,7 +1,7 @@
-"""The reference pages stay in sync with the code: one page per registered id stating its registered
-keywords and its spaces as ``gym.make`` builds them, the options reference as the generator writes it
-now, and the site's navigation over every page; no page over 12 KiB; the examples of "Make your own"
-run; CONTRIBUTING.md names what exists."""
+"""The reference pages stay in sync with the code: one page per registered id, written from its definition
+file, stating its registered keywords and its spaces as ``gym.make`` builds them, the options reference as
+the generator writes it now, and the site's navigation over every page; no page over 12 KiB; the examples
+of "Make your own" run; CONTRIBUTING.md names what exists."""
 
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ from helpers import ROOT
 import emmi_gym
 import emmi_gym.tools.cli
 from emmi_gym.env import REWARDS
+from emmi_gym.env.definitions import shipped_definitions
 from emmi_gym.env.registration import ENV_IDS
 
 DOCS = ROOT / "docs"
@@ -42,8 +43,9 @@ def marked_table(text: str, marker: str) -> list[list[str]]:
     return rows
 
 
-def load_generator():
-    spec = importlib.util.spec_from_file_location("gen_options_doc", ROOT / "docs" / "_scripts" / "gen_options_doc.py")
+def load_generator(name: str = "gen_options_doc"):
+    """The docs generator ``docs/_scripts/<name>.py`` as a module."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "docs" / "_scripts" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -70,7 +72,7 @@ def test_each_id_has_a_page_with_its_registered_keywords(name):
         assert row[0] not in stated, f"{page.name}: {row[0]} is listed twice"
         stated[row[0]] = ast.literal_eval(row[1])
     assert stated == spec.kwargs, (f"docs/envs/{name}.md states the keywords {stated}; the registration "
-                                   f"(emmi_gym/env/registration.py) sets {spec.kwargs}")
+                                   f"(envs/{name}.yaml) sets {spec.kwargs}")
     for heading in ("Description", "Default configuration", "Spaces", "Action space", "Observation space",
                     "Rewards", "Starting state", "Episode end", "Registered id"):
         assert f"\n## {heading}\n" in text, f"{page.name} has no '## {heading}' section"
@@ -90,6 +92,22 @@ def test_each_page_states_the_spaces_gym_make_builds(name):
     env.close()
     stated = dict(marked_table(text, "spaces"))
     assert stated == actual, f"docs/envs/{name}.md states the spaces {stated}; gym.make builds {actual}"
+
+
+@pytest.mark.parametrize("name", list(ENV_IDS))
+def test_each_env_page_is_what_the_generator_writes_from_its_file_now(name):
+    generator = load_generator("gen_env_pages")
+    definition = next(d for d in shipped_definitions() if d.id == name)
+    expected = generator.render_page(definition, generator.spaces(f"emmi_gym/{name}"))
+    assert (DOCS / "envs" / f"{name}.md").read_text() == expected, \
+        f"docs/envs/{name}.md is out of date: run `{generator.COMMAND}`"
+
+
+def test_the_environments_index_table_is_what_the_generator_writes_now():
+    generator = load_generator("gen_env_pages")
+    text = (DOCS / "envs" / "index.md").read_text()
+    assert generator.render_index(text, shipped_definitions()) == text, \
+        f"docs/envs/index.md's table is out of date: run `{generator.COMMAND}`"
 
 
 def test_the_environments_index_links_every_page():
@@ -218,7 +236,7 @@ def test_no_docs_page_exceeds_12_kib():
 
 
 #: The worked examples of docs/make_your_own.md, in the page's order.
-EXAMPLES = ("reward", "action", "observation", "world")
+EXAMPLES = ("reward", "action", "observation", "world", "env_file")
 
 
 def marked_block(text: str, opening: str, closing: str, language: str) -> str:
@@ -242,7 +260,7 @@ def test_the_marked_blocks_are_parsed_as_written():
         marked_block(text, "example: reward", "/example", "bash")
 
 
-def test_make_your_own_has_its_four_examples():
+def test_make_your_own_has_its_five_examples():
     text = (DOCS / "make_your_own.md").read_text()
     assert tuple(re.findall(r"<!-- example: (\w+) -->", text)) == EXAMPLES
 
