@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 from ..inputs.validation import (
@@ -10,22 +11,22 @@ from ..inputs.validation import (
     Choice,
     Integer,
     Invalid,
-    Mapping,
     Maybe,
-    Preset,
+    Options,
     Real,
     Text,
     build,
     check_fields,
     fail,
     option,
+    option_of,
 )
-from ..slam.config import MAX_PARTICLES, MIN_RESOLUTION, RBPFConfig
+from ..slam.config import RBPFConfig
 from ..world import GeneratorConfig, LaserConfig, OdometryNoise
 from ..world.images import DEFAULT_PIXEL_SIZE, PIXEL_SIZE
 from ..world.loop_worlds import LoopWorldConfig
 from ..world.map_sets import WORLD_FAMILIES
-from ..world.presets import LASER_PRESETS, ODOMETRY_PRESETS, laser_config, odometry_config
+from ..world.presets import LASER_OPTIONS, ODOMETRY_OPTIONS
 from .reward_registry import REWARDS, reward_named
 from .rewards import Reward
 
@@ -74,6 +75,24 @@ class RewardOption(Check):
 
 
 @dataclass(frozen=True)
+class GeneratorOptions(Options):
+    """The ``generator`` option: the options of the generated world's family, built: a
+    :class:`~emmi_gym.world.loop_worlds.LoopWorldConfig` for ``world="loop_order"`` (the family's class in
+    :data:`~emmi_gym.world.map_sets.WORLD_FAMILIES`), else a :class:`~emmi_gym.world.GeneratorConfig` (what
+    ``world=None`` generates; checked, and unused, with a fixed world)."""
+
+    cls: type = GeneratorConfig
+
+    @staticmethod
+    def classes() -> tuple[type, ...]:
+        """The dataclasses it may build: :class:`GeneratorConfig` and each family's (what docs/options.md lists)."""
+        return (GeneratorConfig, *(cls for cls, _ in WORLD_FAMILIES.values()))
+
+    def bound(self, owner, name: str) -> Options:
+        return Options(WORLD_FAMILIES.get(owner.world, (GeneratorConfig,))[0])
+
+
+@dataclass(frozen=True)
 class EnvConfig:
     """Options of :class:`~emmi_gym.env.EmmiEnv`; ``gym.make(id, **options)`` sets any of them.
 
@@ -107,19 +126,22 @@ class EnvConfig:
     - ``laser``, ``odometry_noise``: a preset name (:mod:`emmi_gym.world.presets`:
       ``"sick_lms200"``, ``"poor"``...) or a dict of :class:`LaserConfig` /
       :class:`OdometryNoise` fields (with an optional ``preset`` they change); ``slam``: a
-      dict of :class:`RBPFConfig` fields; all checked when the config is made; ``particles``
-      and ``resolution`` set the filter's (not inside ``slam``).
+      dict of :class:`RBPFConfig` fields; ``particles`` and ``resolution`` set the filter's
+      (not inside ``slam``). Each may also be given as the dataclass itself.
 
     Every field is typed and bounded (:mod:`emmi_gym.inputs.validation`); a mistake raises an
-    ``OptionError`` naming the field.
+    ``OptionError`` naming the field. The config holds its nested options built, once, when it is
+    made: ``laser`` is a :class:`LaserConfig`, ``odometry_noise`` an :class:`OdometryNoise`, ``slam``
+    an :class:`RBPFConfig` (with ``particles`` and ``resolution``), ``generator`` the world family's
+    options (:class:`GeneratorOptions`).
     """
 
     world: str | None = option(
         "loop_corridor", Maybe(Text(), "a generated world per reset"),
         help="a built-in name, world or map_server file, floor-plan image, a shipped set's plan "
              "('dungeon_maps/test/img_10011.png'), map set or 'loop_order'; None: generated")
-    generator: dict = option({}, Mapping(),
-                             help="GeneratorConfig fields (world=None) or LoopWorldConfig ones (world='loop_order')")
+    generator: GeneratorConfig | LoopWorldConfig = option(
+        {}, GeneratorOptions(), help="GeneratorConfig fields (world=None) or LoopWorldConfig ones (world='loop_order')")
     pixel_size: float = option(DEFAULT_PIXEL_SIZE, PIXEL_SIZE,
                                help="metres per pixel of a floor-plan image")
     start_at: str = option(
@@ -146,18 +168,16 @@ class EnvConfig:
                                    help="subtracted per simulator step spent driving into a wall")
     coverage_target: float = option(0.9, Real(0.0, 1.0, open_lo=True),
                                     help="share of the reachable free space swept by the scans that ends the episode")
-    particles: int = option(15, Integer(1, MAX_PARTICLES, "each particle holds a whole map"),
-                            help="particles of the filter (each holds a whole map)")
-    resolution: float = option(0.1, Real(MIN_RESOLUTION, 1.0, unit="m"),
-                               help="cell side of the filter's maps")
-    laser: dict | str = option(
-        {}, Preset(tuple(LASER_PRESETS)),
+    particles: int = option_of(RBPFConfig, "particles", help="particles of the filter (each holds a whole map)")
+    resolution: float = option_of(RBPFConfig, "resolution", help="cell side of the filter's maps")
+    laser: LaserConfig = option(
+        {}, LASER_OPTIONS,
         help="a laser preset's name, or LaserConfig fields with an optional 'preset' they change")
-    odometry_noise: dict | str = option(
-        {}, Preset(tuple(ODOMETRY_PRESETS)),
+    odometry_noise: OdometryNoise = option(
+        {}, ODOMETRY_OPTIONS,
         help="an odometry preset's name, or OdometryNoise fields with an optional 'preset'")
-    slam: dict = option({}, Mapping(),
-                        help="RBPFConfig fields (particles and resolution are top-level options)")
+    slam: RBPFConfig = option({}, Options(RBPFConfig, given=("particles", "resolution")),
+                              help="RBPFConfig fields (particles and resolution are top-level options)")
     observation: str = option(
         "dict", Choice(OBSERVATIONS),
         help="'dict': map, pose, certainty (and targets in waypoint mode); 'image': the map image alone")
@@ -185,32 +205,33 @@ class EnvConfig:
                                 help="simulator steps after which a macro-action ends")
 
     def __post_init__(self):
-        check_fields(self)
-        for name in ("particles", "resolution"):
-            if name in self.slam:
-                fail(self, f"slam.{name}", f"no {name} inside slam: give it as the top-level option {name} "
-                     "(which sets the filter's)", self.slam[name])
+        check_fields(self)  # the nested options built too (gym.make and agent configurations fail before any work)
         paid, shown = self.rewards()
         by_name = {}
         for reward in (paid, *shown):
             if by_name.setdefault(reward.name, reward) != reward:
                 fail(self, "info_rewards", f"one reward per name (two differ under {reward.name!r})", reward)
-        # the nested options, checked now (gym.make and agent configurations fail before any work starts)
-        self.laser_config(), self.odometry_config(), self.slam_config(), self.generator_config()
 
     def laser_config(self) -> LaserConfig:
-        return laser_config(self.laser, "laser", source=SOURCE)
+        """Deprecated: :attr:`laser` (built)."""
+        return self._deprecated("laser_config", "laser")
 
     def odometry_config(self) -> OdometryNoise:
-        return odometry_config(self.odometry_noise, "odometry_noise", source=SOURCE)
+        """Deprecated: :attr:`odometry_noise` (built)."""
+        return self._deprecated("odometry_config", "odometry_noise")
 
     def slam_config(self) -> RBPFConfig:
-        return build(RBPFConfig, dict(self.slam, particles=self.particles, resolution=self.resolution), "slam",
-                     source=SOURCE)
+        """Deprecated: :attr:`slam` (built)."""
+        return self._deprecated("slam_config", "slam")
 
     def generator_config(self) -> GeneratorConfig | LoopWorldConfig:
-        family = WORLD_FAMILIES[self.world][0] if self.world in WORLD_FAMILIES else GeneratorConfig
-        return build(family, self.generator, "generator", source=SOURCE)
+        """Deprecated: :attr:`generator` (built)."""
+        return self._deprecated("generator_config", "generator")
+
+    def _deprecated(self, method: str, field: str):
+        warnings.warn(f"EnvConfig.{method}() is deprecated: read EnvConfig.{field}, built when the config is made; "
+                      "it goes in emmi-gym 0.5.0", FutureWarning, stacklevel=3)
+        return getattr(self, field)
 
     @property
     def scale(self) -> float:
@@ -234,8 +255,6 @@ def make_config(**options) -> EnvConfig:
 
 def deprecated_reward_scales(stacklevel: int = 2) -> dict[str, float]:
     """The scales by name, as ``REWARD_SCALES`` gave them before the rewards had a registry, with a warning."""
-    import warnings
-
     warnings.warn("REWARD_SCALES is deprecated: read REWARDS[name].scale (emmi_gym.env.REWARDS); it goes in "
                   "emmi-gym 0.5.0", FutureWarning, stacklevel=stacklevel + 1)
     return {name: reward.scale for name, reward in REWARDS.items()}

@@ -9,8 +9,18 @@ from ..geometry.grid import GridGeometry
 from ..navigation.candidates import Target
 from ..navigation.follower import WaypointFollower
 from ..scoring.scores import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
-from ..slam import RBPF, UpdateMetrics
-from ..world import GroundTruth, RobotConfig, Simulator, WorldSpec, rasterise
+from ..slam import RBPF, RBPFConfig, UpdateMetrics
+from ..world import (
+    GeneratorConfig,
+    GroundTruth,
+    LaserConfig,
+    OdometryNoise,
+    RobotConfig,
+    Simulator,
+    WorldSpec,
+    rasterise,
+)
+from ..world.loop_worlds import LoopWorldConfig
 from ..world.map_sets import WorldSource
 from .actions import ActionType, action_factory
 from .config import EnvConfig, make_config
@@ -56,11 +66,7 @@ class EmmiEnv(gym.Env):
         self.render_mode = render_mode
         self.robot_config = RobotConfig()
         self.metadata = dict(self.metadata, render_fps=int(round(1.0 / self.robot_config.control_period)))
-        self.laser_config = cfg.laser_config()
-        self.odometry_config = cfg.odometry_config()
-        self.slam_config = cfg.slam_config()
-        self.generator_config = cfg.generator_config()
-        self._worlds = WorldSource(cfg.world, self.generator_config, cfg.pixel_size)
+        self._worlds = WorldSource(cfg.world, cfg.generator, cfg.pixel_size)
         fixed = self._worlds.fixed
         if self._worlds.files is not None and cfg.start_at == "decision":
             raise ValueError(f"the map set {cfg.world!r} has no 'to_decision' routes: use start_at='start'")
@@ -98,6 +104,26 @@ class EmmiEnv(gym.Env):
         self.action_space = self.action_type.space()
         self.observation_type: ObservationType = observation_factory(self, cfg)
         self.observation_space = self.observation_type.space()
+
+    @property
+    def laser_config(self) -> LaserConfig:
+        """The simulated laser's settings (the ``laser`` option, built)."""
+        return self.config.laser
+
+    @property
+    def odometry_config(self) -> OdometryNoise:
+        """The odometry's noise (the ``odometry_noise`` option, built)."""
+        return self.config.odometry_noise
+
+    @property
+    def slam_config(self) -> RBPFConfig:
+        """The filter's settings (the ``slam`` option, built with ``particles`` and ``resolution``)."""
+        return self.config.slam
+
+    @property
+    def generator_config(self) -> GeneratorConfig | LoopWorldConfig:
+        """The generated worlds' options (the ``generator`` option, built for the world's family)."""
+        return self.config.generator
 
     # ------------------------------------------------------------------ episode
 

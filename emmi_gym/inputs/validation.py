@@ -3,14 +3,17 @@
 Each checked dataclass declares its fields with :func:`option` (a default and a :class:`Check`);
 its ``__post_init__`` calls :func:`check_fields`, and :func:`build` makes one from a dict of
 options (unknown names, wrong types and values out of bounds all raise :class:`OptionError`
-naming the option, what was expected and a short excerpt of what was found). Upper bounds keep
-a few bytes of input from asking for gigabytes; where a bound is about memory the message says
-how much the value would take.
+naming the option, what was expected and a short excerpt of what was found). A field of nested
+options (:class:`Options`) holds the built dataclass, so a tree of options is built and checked
+once, and its errors name the whole path (``laser.n_beams``). Upper bounds keep a few bytes of
+input from asking for gigabytes; where a bound is about memory the message says how much the
+value would take.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, fields
 
 from .errors import FieldError, excerpt
@@ -31,13 +34,19 @@ class Invalid(Exception):
 
 
 class Check:
-    """Validates and normalises one value; ``describe`` is the 'expected ...' text."""
+    """Validates and normalises one value; ``describe`` is the 'expected ...' text. A check raises
+    :class:`Invalid`, or the :class:`OptionError` of a nested option (its field path relative to the value)."""
 
     def __call__(self, value):
         raise NotImplementedError
 
     def describe(self) -> str:
         raise NotImplementedError
+
+    def bound(self, owner, name: str) -> Check:
+        """The check of field ``name`` of ``owner`` (whose fields before it are checked already): itself,
+        unless what it accepts depends on those fields (:class:`Options`' ``given``)."""
+        return self
 
 
 def _is_number(value) -> bool:
@@ -141,8 +150,8 @@ class Mapping(Check):
 
 
 @dataclass(frozen=True)
-class Preset(Check):
-    """A preset's name (one of ``names``) or a dict of nested options (checked by whoever builds from it)."""
+class _Preset(Check):
+    """Deprecated (:class:`Options` builds the options it names): a preset's name or a dict, returned as given."""
 
     names: tuple
 
@@ -155,6 +164,53 @@ class Preset(Check):
         if not isinstance(value, str) or value not in self.names:
             raise Invalid(self.describe())
         return value
+
+
+@dataclass(frozen=True)
+class Options(Check):
+    """Nested options, built: an instance of ``cls``, or a dict of its fields; with ``presets`` (name ->
+    fields), also a preset's name, or a dict whose ``preset`` key names the preset its fields change.
+
+    ``given`` names fields of ``cls`` that the owner's fields of the same names set (declared before
+    this one, with :func:`option_of`): a dict may not hold them, and an instance must agree with the owner."""
+
+    cls: type
+    presets: dict | None = None
+    given: tuple = ()
+    # as bound to an owner (:meth:`bound`): its field's name and (name, value) of the given fields
+    owner_field: str = ""
+    owner_values: tuple = ()
+
+    def describe(self) -> str:
+        name = self.cls.__name__
+        kind = f"a mapping of options or {'an' if name[0] in 'AEIOU' else 'a'} {name}"
+        return f"a preset name (one of {list(self.presets)}), {kind}" if self.presets else kind
+
+    def bound(self, owner, name: str) -> Options:
+        if not self.given:
+            return self
+        return Options(self.cls, self.presets, self.given, name, tuple((g, getattr(owner, g)) for g in self.given))
+
+    def __call__(self, value):
+        if isinstance(value, self.cls):
+            for given, owners in self.owner_values:
+                if getattr(value, given) != owners:
+                    raise OptionError("", given, f"{owners!r}, as the top-level option {given} (which sets "
+                                      f"{self.owner_field}'s) is", getattr(value, given))
+            return value
+        if self.presets and isinstance(value, str):
+            value = {"preset": value}
+        if not isinstance(value, dict):
+            raise Invalid(self.describe())
+        fields_ = dict(value)
+        for given, _ in self.owner_values:
+            if given in fields_:
+                raise OptionError("", given, f"no {given} inside {self.owner_field}: give it as the top-level option "
+                                  f"{given}, which sets {self.owner_field}'s", fields_[given])
+        if self.presets and "preset" in fields_:
+            name = check_value(fields_.pop("preset"), Choice(tuple(self.presets)), "", "preset")
+            fields_ = dict(self.presets[name], **fields_)
+        return build(self.cls, {**fields_, **dict(self.owner_values)}, "", source=self.cls.__name__)
 
 
 @dataclass(frozen=True)
@@ -206,16 +262,21 @@ def option(default, check: Check, help: str = ""):
 
 
 def check_fields(instance) -> None:
-    """Apply every field's :class:`Check` to a (frozen) dataclass instance, storing the normalised values."""
+    """Apply every field's :class:`Check` to a (frozen) dataclass instance, in their order, storing the
+    normalised values (nested options built)."""
     for f in fields(instance):
         check = f.metadata.get("check")
-        if check is None:
-            continue
-        value = getattr(instance, f.name)
-        try:
-            object.__setattr__(instance, f.name, check(value))
-        except Invalid as exc:
-            raise OptionError(type(instance).__name__, f.name, str(exc), value) from None
+        if check is not None:
+            value = check_value(getattr(instance, f.name), check.bound(instance, f.name), type(instance).__name__,
+                                f.name)
+            object.__setattr__(instance, f.name, value)
+
+
+def option_of(cls, name: str, help: str | None = None):
+    """The field ``name`` of the option dataclass ``cls`` declared again, for an owner that sets it
+    (:class:`Options`' ``given``): the same default and check, one declaration."""
+    declared = next(f for f in fields(cls) if f.name == name)
+    return option(declared.default, declared.metadata["check"], declared.metadata["help"] if help is None else help)
 
 
 def fail(instance, name: str, expected: str, got=FieldError.NOTHING):
@@ -241,18 +302,30 @@ def build(cls, options, label: str, source: str = "option", error=OptionError):
 
 
 def check_value(value, check: Check, source: str, name: str, error=OptionError):
-    """``check(value)``, or ``error`` naming ``source`` and the field ``name``."""
+    """``check(value)``, or ``error`` naming ``source`` and the field ``name`` (``name.path`` for an error
+    inside nested options)."""
     try:
         return check(value)
     except Invalid as exc:
         raise error(source, name, str(exc), value) from None
+    except OptionError as exc:
+        raise error(source, field_path(name, exc.field), exc.expected, exc.got) from None
 
 
 def field_path(label: str, name: str) -> str:
     """The dotted name of field ``name`` of the options at ``label`` ("" for the top level)."""
-    return f"{label}.{name}" if label else name
+    return ".".join(part for part in (label, name) if part)
+
+
+def __getattr__(name: str):
+    """``Preset`` (PEP 562): deprecated, see :class:`_Preset`."""
+    if name == "Preset":
+        warnings.warn("emmi_gym.inputs.validation.Preset is deprecated: Options(cls, presets) builds the options "
+                      "a preset names; it goes in emmi-gym 0.5.0", FutureWarning, stacklevel=2)
+        return _Preset
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 __all__ = ["MAX_LASER_RANGE", "Boolean", "Check", "Choice", "Integer", "Invalid", "Mapping", "Maybe", "OptionError",
-           "Preset", "Real", "Text", "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "field_path",
-           "option"]
+           "Options", "Real", "Text", "Tuple", "build", "check_fields", "check_value", "excerpt", "fail", "field_path",
+           "option", "option_of"]

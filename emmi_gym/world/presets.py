@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from ..inputs.validation import Choice, OptionError, build, check_value, field_path
+from ..inputs.validation import Options, check_value
 from .laser import LaserConfig
 from .odometry import OdometryNoise
 
@@ -47,27 +47,19 @@ ODOMETRY_PRESETS = {
 }
 
 
-def _with_preset(cls, value, presets: dict, label: str, source: str):
-    """``cls`` from a preset name, or from a dict of fields that may name its ``preset``."""
-    if value is None:
-        value = {}
-    if isinstance(value, str):
-        value = {"preset": value}
-    if not isinstance(value, dict):
-        raise OptionError(source, label, f"a preset name (one of {list(presets)}) or a mapping of options", value)
-    fields = dict(value)
-    name = fields.pop("preset", None)
-    if name is not None:
-        check_value(name, Choice(tuple(presets)), source, field_path(label, "preset"))
-        fields = dict(presets[name], **fields)
-    return build(cls, fields, label, source=source)
+#: The ``laser`` and ``odometry_noise`` options: a preset's name, a dict of fields (with an optional ``preset``
+#: they change) or the dataclass itself, built.
+LASER_OPTIONS = Options(LaserConfig, LASER_PRESETS)
+ODOMETRY_OPTIONS = Options(OdometryNoise, ODOMETRY_PRESETS)
 
 
 def laser_config(value, label: str = "laser", source: str = "option") -> LaserConfig:
-    """A :class:`LaserConfig` from a preset name (:data:`LASER_PRESETS`) or a dict of fields."""
-    return _with_preset(LaserConfig, value, LASER_PRESETS, label, source)
+    """A :class:`LaserConfig` from a preset name (:data:`LASER_PRESETS`) or a dict of fields (``None``: the
+    defaults); a mistake raises an ``OptionError`` naming ``source`` and the field ``label.name``."""
+    return check_value({} if value is None else value, LASER_OPTIONS, source, label)
 
 
 def odometry_config(value, label: str = "odometry_noise", source: str = "option") -> OdometryNoise:
-    """An :class:`OdometryNoise` from a preset name (:data:`ODOMETRY_PRESETS`) or a dict of fields."""
-    return _with_preset(OdometryNoise, value, ODOMETRY_PRESETS, label, source)
+    """An :class:`OdometryNoise` from a preset name (:data:`ODOMETRY_PRESETS`) or a dict of fields (``None``: the
+    defaults), as :func:`laser_config`."""
+    return check_value({} if value is None else value, ODOMETRY_OPTIONS, source, label)

@@ -266,6 +266,57 @@ def test_bad_options_raise_a_clear_error(options, message):
         gym.make("emmi_gym/LoopCorridor-v1", **options)
 
 
+def test_the_options_are_built_once_into_one_typed_tree():
+    """gym.make builds the nested options with the config (a preset, a dict of fields or the dataclass itself are
+    one value), and the env hands those objects down; the filter's particles and resolution are the top-level
+    options, declared once."""
+    from dataclasses import fields
+
+    from emmi_gym.env.config import EnvConfig, make_config
+    from emmi_gym.slam import RBPFConfig
+    from emmi_gym.world import GeneratorConfig, LaserConfig, OdometryNoise
+    from emmi_gym.world.loop_worlds import LoopWorldConfig
+
+    sick = LaserConfig(fov=np.pi, n_beams=181, max_range=30.0, range_sigma=0.01, drop_probability=0.005)
+    config = make_config(laser="sick_lms200", odometry_noise={"preset": "poor"}, slam={"linear_update": 1.0},
+                         particles=7, resolution=0.2)
+    assert config.laser == sick and config == make_config(**{**vars(config), "laser": sick})
+    assert isinstance(config.odometry_noise, OdometryNoise) and config.generator == GeneratorConfig()
+    assert (config.slam.linear_update, config.slam.particles, config.slam.resolution) == (1.0, 7, 0.2)
+    assert pickle.loads(pickle.dumps(config)) == config
+    loops = make_config(world="loop_order", generator={"loop_width": 30.0}).generator
+    assert loops == LoopWorldConfig(loop_width=30.0)
+    env = gym.make("emmi_gym/Explore-v1", laser=sick, slam=RBPFConfig(particles=5, linear_update=1.0),
+                   **SMALL).unwrapped
+    assert env.laser_config is env.config.laser and env.slam_config is env.config.slam
+    env.reset(seed=0)
+    assert env.slam.config is env.config.slam  # the filter runs on the object gym.make built
+    declared = {f.name: f.metadata["check"] for f in fields(RBPFConfig)}
+    assert all(f.metadata["check"] is declared[f.name] for f in fields(EnvConfig) if f.name in ("particles",
+                                                                                                 "resolution"))
+    with pytest.raises(ValueError, match=r"field 'slam.particles': expected 15, as the top-level option particles"):
+        make_config(slam=RBPFConfig(particles=5))
+    with pytest.raises(ValueError, match=r"field 'generator': expected a mapping of options or a GeneratorConfig, "
+                                         r"got LoopWorldConfig"):
+        make_config(world=None, generator=LoopWorldConfig())
+    with pytest.raises(ValueError, match=r"field 'generator.nx': expected one of the known options \['loop_width'"):
+        make_config(world="loop_order", generator={"nx": 3})
+
+
+def test_the_old_ways_to_read_the_nested_options_warn():
+    from emmi_gym.env.config import make_config
+    from emmi_gym.inputs import validation
+
+    config = make_config(laser="sick_lms200")
+    for method, field in (("laser_config", "laser"), ("odometry_config", "odometry_noise"),
+                          ("slam_config", "slam"), ("generator_config", "generator")):
+        with pytest.warns(FutureWarning, match=rf"EnvConfig.{method}\(\) is deprecated: read EnvConfig.{field}.*"
+                                               r"0\.5\.0"):
+            assert getattr(config, method)() is getattr(config, field)
+    with pytest.warns(FutureWarning, match="Preset is deprecated: Options"):
+        assert validation.Preset(("a",))("a") == "a"
+
+
 def test_bad_render_mode_and_reset_option():
     # gymnasium itself warns first that 'screen' is not in metadata["render_modes"]
     with (pytest.raises(ValueError, match=r"render_mode='screen' is not valid"),
