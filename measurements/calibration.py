@@ -6,6 +6,7 @@
     python measurements/calibration.py logs [--data ../shared/datasets/radish-noisy] [--logs intel aces]
         [--log-seeds 0 1 2] [--filter-seeds 0] [--preset radish-noisy] [--slam '{...}'] [--csv logs.csv]
     python measurements/calibration.py plot before.csv after.csv --out calibration.png
+    python measurements/calibration.py honest [--particles 15 30 60] [--log-weight-sd 0 1 2] [--moments 4000]
 
 ``env`` plays episodes of a scripted policy and checks (``emmi_gym.tools.experiments.calibration``), at every
 filter update, the weighted particle mean and covariance of the pose against the true pose, the motion over
@@ -15,7 +16,9 @@ update, as ``slam_benchmark.py``) and checks the relative motions against their 
 prints, per family: the NEES in (x, y) (2 for an honest belief) and in (x, y, theta) (3), the share of
 moments whose truth lies inside the 50, 90 and 95% ellipses, and the RMS spread against the RMS error (m).
 ``--csv`` keeps every moment's check; ``plot`` draws the calibration curves of such files (RMS error
-against RMS predicted spread, moments binned by spread, the diagonal drawn).
+against RMS predicted spread, moments binned by spread, the diagonal drawn). ``honest`` prints what a cloud
+that is honest by construction scores with so many particles and weights so uneven
+(:func:`emmi_gym.scoring.calibration.honest_cloud_summary`): the most a filter of that size can show.
 """
 
 from __future__ import annotations
@@ -28,13 +31,14 @@ from dataclasses import asdict
 from functools import partial
 from pathlib import Path
 
+import numpy as np
 from _data import require_files
 from _options import json_object, rbpf_config
 
 from emmi_gym.concurrency.parallel import run_in_processes
 from emmi_gym.env.seeds import HELD_OUT_SEED
 from emmi_gym.formats.carmen import read_log
-from emmi_gym.scoring.calibration import PoseCheck
+from emmi_gym.scoring.calibration import PoseCheck, honest_cloud_summary
 from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.calibration import (
     FAMILIES,
@@ -119,6 +123,17 @@ def plot(paths: list[Path], out: Path) -> None:
     print(f"wrote {out}")
 
 
+def print_honest(particles: list[int], log_weight_sds: list[float], moments: int) -> None:
+    print(f"honest clouds: truth and particles from one Gaussian, {moments} moments each")
+    print("| particles | log-weight sd | median Neff | NEES x, y: mean | median | inside 50 / 90 / 95% |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for m in particles:
+        for sd in log_weight_sds:
+            s = honest_cloud_summary(m, sd, moments, np.random.default_rng(0))
+            print(f"| {m} | {sd:g} | {s['neff']:.1f} | {s['mean']:.2f} | {s['median']:.2f} | "
+                  f"{s['inside_50']:.0%} / {s['inside_90']:.0%} / {s['inside_95']:.0%} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="mode", required=True)
@@ -147,7 +162,14 @@ def main() -> None:
     drawing = sub.add_parser("plot", help="calibration curves of --csv files")
     drawing.add_argument("csvs", nargs="+", type=Path)
     drawing.add_argument("--out", type=Path, default=Path("calibration.png"))
+    honest = sub.add_parser("honest", help="what honest clouds of a few particles score")
+    honest.add_argument("--particles", nargs="+", type=arguments.integer(3), default=[15, 30, 60])
+    honest.add_argument("--log-weight-sd", nargs="+", type=arguments.number(0.0), default=[0.0, 1.0, 2.0])
+    honest.add_argument("--moments", type=arguments.integer(1), default=4000)
     args = parser.parse_args()
+    if args.mode == "honest":
+        print_honest(args.particles, args.log_weight_sd, args.moments)
+        return
     if args.mode == "plot":
         plot(args.csvs, args.out)
         return

@@ -102,3 +102,25 @@ def nees_summary(values, dof: int) -> dict[str, float]:
     for level in COVERAGE_LEVELS:
         summary[f"inside_{round(100 * level)}"] = float(np.mean(v <= chi2.ppf(level, dof)))
     return summary
+
+
+def honest_cloud_summary(particles: int, log_weight_sd: float, moments: int, rng: np.random.Generator,
+                         dof: int = 2) -> dict[str, float]:
+    """What :func:`nees_summary` gives for a cloud that is honest by construction: at each of ``moments``
+    moments the truth and ``particles`` particles are drawn from one Gaussian in ``dof`` dimensions, with
+    weights exp(``log_weight_sd`` * N(0, 1)) that are independent of the draws. The mean NEES of such a
+    cloud is the Hotelling T^2's, above ``dof`` for a few particles, and its coverage below the levels: the
+    most a filter of that many particles, with weights that uneven, can show. ``"neff"``: the median
+    effective sample size (1 / sum w^2) of the weights."""
+    if particles <= dof:
+        raise ValueError(f"particles must be more than dof = {dof} (the covariance of {particles} is singular)")
+    values, neffs = np.empty(moments), np.empty(moments)
+    for k in range(moments):
+        points = rng.standard_normal((particles, dof))
+        weights = np.exp(log_weight_sd * rng.standard_normal(particles))
+        weights /= weights.sum()
+        mean = weights @ points
+        deviations = points - mean
+        values[k] = nees(rng.standard_normal(dof) - mean, (deviations * weights[:, None]).T @ deviations)
+        neffs[k] = 1.0 / float(weights @ weights)
+    return {**nees_summary(values, dof), "neff": float(np.median(neffs))}

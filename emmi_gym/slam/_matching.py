@@ -51,6 +51,7 @@ MatchSettings = namedtuple("MatchSettings", [
     "exponent",          # tempering of the weights
     "revisit_extra",     # revisit_exponent - exponent: the extra tempering of beams that see a place again
     "min_matched",       # fraction of the likelihood beams that must match
+    "proposal_inflation",  # factor on the covariance of the proposal's fitted Gaussian
 ])
 
 
@@ -68,7 +69,7 @@ def match_settings(config, origin_x: float, origin_y: float, resolution: float, 
         config.match_linear_step, config.match_angular_step, config.match_refinements,
         config.match_max_iterations, int(block), block * resolution, config.coarse_angular_step,
         config.coarse_trigger, config.likelihood_exponent, revisit_exponent - config.likelihood_exponent,
-        config.min_match_fraction)
+        config.min_match_fraction, config.proposal_inflation)
 
 
 @nb.njit(cache=True)
@@ -390,7 +391,8 @@ def improved_proposal(start, stop, codes, hits, coarse, motion_samples, motion_m
     (``climb_*``: the beams used while climbing). If at least ``min_matched`` of the
     likelihood beams (``ranges``, ``angles``: decimated, since neighbouring beams' errors
     are not independent) match there, evaluate L on x* and x* +- one step along x, y and
-    theta, fit a Gaussian weighted by exp(L), draw the new pose from it with ``normals``,
+    theta, fit a Gaussian weighted by exp(L), widen its covariance by ``proposal_inflation``,
+    draw the new pose from it with ``normals``,
     and add ``exponent * log(eta)`` to the log-weight, eta = sum exp(L) * step volume
     (eq. 20). Otherwise keep x' and add ``exponent * loglik(x')``: the same integral
     estimated by the one sample drawn from the motion model. With ``separate_weights``,
@@ -461,6 +463,7 @@ def _propose(i, grid, cell_hits, coarse, motion_samples, motion_means, motion_pr
     for k in range(7):
         d = stencil[k] - mean
         cov += (scores[k] / total) * np.outer(d, d)
+    cov *= s.proposal_inflation
     cov[0, 0] += 1e-6
     cov[1, 1] += 1e-6
     cov[2, 2] += 1e-7

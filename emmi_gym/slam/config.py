@@ -90,6 +90,11 @@ class RBPFConfig:
                                         help="first heading step of the coarse climb")
     coarse_trigger: float = option(0.6, Real(0.0, 1.0),  # run the coarse stage below this fraction of matched beams
                                    help="run the coarse stage below this share of matched beams")
+    # The improved proposal's Gaussian is fitted to a likelihood that counts every beam as independent;
+    # neighbouring beams see one surface and share its map error, so the fit is narrower than the
+    # pose's uncertainty. Its covariance times this (1: GMapping's fit as it is).
+    proposal_inflation: float = option(1.0, Real(1.0, 100.0),
+                                       help="factor on the covariance of the proposal's fitted Gaussian")
     # likelihood and weights
     likelihood_sigma: float = option(
         0.075, Real(0.001, 10.0, unit="m"),

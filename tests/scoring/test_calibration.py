@@ -4,9 +4,12 @@ import math
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
+from scipy.stats import f as f_distribution
 
 from emmi_gym.scoring.calibration import (
     check_pose,
+    honest_cloud_summary,
     nees,
     nees_summary,
     pose_moments,
@@ -87,3 +90,17 @@ def test_relative_motions_do_not_depend_on_the_map_frame():
 def test_no_moments_is_an_error():
     with pytest.raises(ValueError, match="no NEES"):
         nees_summary([], 2)
+
+
+def test_an_honest_cloud_of_many_particles_scores_chi_square_and_of_few_the_hotelling_t2():
+    many = honest_cloud_summary(1000, 0.0, 3000, np.random.default_rng(0))
+    assert abs(many["mean"] - 2.0) < 0.15 and abs(many["inside_95"] - 0.95) < 0.015
+    few = honest_cloud_summary(15, 0.0, 3000, np.random.default_rng(0))
+    # normalised by the weights' sum (by M), the NEES is d (M + 1) / (M - d) times F(d, M - d) (Hotelling's
+    # T^2): mean d (M + 1) / (M - d - 2) = 2.91, and the truth inside the chi-square 95% ellipse at 87.3%
+    assert abs(few["mean"] - 2 * 16 / 11) < 0.3
+    assert abs(few["inside_95"] - f_distribution.cdf(chi2.ppf(0.95, 2) * 13 / 32, 2, 13)) < 0.02
+    uneven = honest_cloud_summary(15, 2.0, 3000, np.random.default_rng(0))
+    assert uneven["neff"] < 5 and uneven["inside_95"] < few["inside_95"] - 0.15
+    with pytest.raises(ValueError, match="more than dof"):
+        honest_cloud_summary(2, 0.0, 10, np.random.default_rng(0))

@@ -91,3 +91,37 @@ def test_the_far_face_of_a_thick_wall_is_not_a_surface():
     geometry = GridGeometry(resolution, 0.0, 0.0, 60, 60)
     assert _scan_matched_fraction(grid, hits, geometry, pose, at_face, angles, 8.0) == 1.0
     assert _scan_matched_fraction(grid, hits, geometry, pose, beyond, angles, 8.0) == 0.0
+
+
+@pytest.mark.parametrize("inflation", [4.0, 9.0])
+def test_proposal_inflation_widens_the_fitted_gaussian_s_draws_by_its_root(scans, inflation):
+    """Two particles on one map, drawn with opposite normals: their midpoint is the fitted Gaussian's mean, and
+    each draw's offset from it grows by sqrt(proposal_inflation); the weights, which the fit's normaliser
+    sets before the covariance is widened, stay as they were. A flat likelihood (sigma 1 m) gives the fit
+    a width of about the stencil's step, far above its numerical floor of 1 mm."""
+    world, laser, poses, ranges = scans
+    geometry = GridGeometry.covering(*world.bounds, 0.05, margin=2.0)
+
+    def propose(config):
+        maps = ParticleMaps(geometry, 2, CellCodes.from_config(config), config.coarse_block())
+        for pose, r in zip(poses[1:], ranges[1:], strict=False):
+            maps.insert(np.stack([pose, pose]), r, laser.config.angles, laser.config.max_range, 0.0)
+        settings = MT.match_settings(config, geometry.origin_x, geometry.origin_y, 0.05, maps.block)
+        start = np.stack([TRUE_POSE + [0.03, -0.02, 0.01]] * 2)
+        normals = np.array([[0.8, -1.1, 0.6], [-0.8, 1.1, -0.6]])
+        precisions = np.stack([np.diag([1 / 0.1 ** 2, 1 / 0.1 ** 2, 1 / 0.05 ** 2])] * 2)
+        beams = laser.config.angles
+        new_poses, increments, matched = np.empty((2, 3)), np.empty(2), np.zeros(2, dtype=np.bool_)
+        MT.improved_proposal(0, 2, maps.codes, maps.hits, maps.coarse, start, start, precisions, np.zeros(2),
+                             normals, ranges[0][::3], beams[::3], ranges[0][::2], beams[::2], ranges[0][::2],
+                             False, laser.config.max_range, settings, new_poses, increments, matched)
+        assert matched.all()
+        centre = new_poses.mean(axis=0)
+        return new_poses[0] - centre, increments
+
+    offset, weights = propose(RBPFConfig(resolution=0.05, likelihood_sigma=1.0))
+    wide_offset, wide_weights = propose(RBPFConfig(resolution=0.05, likelihood_sigma=1.0,
+                                                   proposal_inflation=inflation))
+    assert np.linalg.norm(offset[:2]) > 0.01
+    np.testing.assert_allclose(wide_offset, math.sqrt(inflation) * offset, rtol=0.01)
+    np.testing.assert_array_equal(wide_weights, weights)
