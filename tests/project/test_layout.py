@@ -34,6 +34,9 @@ TOOLS = {
     "cli": {"commands"},
 }
 ALLOWED = LIBRARY | TOOLS
+#: The tools' old names (``emmi_gym.training``, ``emmi_gym/pretrained.py``, ...): alias modules at the top of the
+#: package, each importing the one tools package it names (:mod:`emmi_gym._moved`).
+OLD_NAMES = set(emmi_gym.MOVED_TO_TOOLS)
 
 
 def layer(module: list[str]) -> str | None:
@@ -75,11 +78,15 @@ def modules_of(path: Path) -> tuple[list[str], str]:
 
 
 def test_the_tree_shows_the_two_halves():
-    """The library's packages at the top of ``emmi_gym``, the tools under ``emmi_gym/tools``, nothing else."""
+    """The library's packages at the top of ``emmi_gym``, the tools under ``emmi_gym/tools``, the tools' old names
+    (aliases), nothing else."""
     top = {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file()}
-    assert top == set(LIBRARY) | {"tools", "worlds_data"}
+    assert top == set(LIBRARY) | {"tools", "worlds_data"} | {name for name in OLD_NAMES if (ROOT / name).is_dir()}
     assert {p.name for p in (ROOT / "tools").iterdir() if (p / "__init__.py").is_file()} == set(TOOLS) - {"cli"}
-    assert sorted(p.name for p in ROOT.glob("*.py")) == ["__init__.py", "__main__.py"]
+    assert sorted(p.stem for p in ROOT.glob("*.py")) == sorted({"__init__", "__main__", "_moved"} | OLD_NAMES - top)
+    for name in OLD_NAMES:  # each old name is an alias, no code of its own
+        alias = ROOT / name / "__init__.py" if name in top else ROOT / f"{name}.py"
+        assert f"alias_moved(__name__, {name})" in alias.read_text(), alias
     assert sorted(p.name for p in (ROOT / "tools").glob("*.py")) == ["__init__.py", "cli.py"]
 
 
@@ -98,6 +105,25 @@ def test_the_library_never_imports_the_tools():
              if modules_of(path)[1] in LIBRARY
              and (found := imported_layers(path.read_text(), modules_of(path)[0]) & set(TOOLS))]
     assert not wrong, wrong
+
+
+def test_outside_the_tools_only_their_old_names_and_the_command_import_them():
+    """The package's root imports the library (to register the ids) and, lazily in its ``__getattr__``, the
+    old name ``emmi_gym.pretrained`` (PEP 562); each old name imports the one tools package it names;
+    ``python -m emmi_gym`` runs the command. No other module outside ``emmi_gym/tools`` imports the tools."""
+    found = {}
+    for path in sorted(ROOT.rglob("*.py")):
+        module, own = modules_of(path)
+        if own not in LIBRARY and module[1] not in ("tools", "worlds_data"):
+            found[".".join(module).removesuffix(".__init__")] = imported_layers(path.read_text(), module) & set(TOOLS)
+    assert found.pop("emmi_gym.__main__") == {"cli"}
+    assert {name: layers for name, layers in found.items() if layers} == \
+        {f"emmi_gym.{name}": {name} for name in OLD_NAMES}
+    root = ast.parse((ROOT / "__init__.py").read_text())
+    by_name = [(function.name, ast.unparse(node)) for function in ast.walk(root)
+               if isinstance(function, ast.FunctionDef) for node in ast.walk(function)
+               if isinstance(node, ast.Call) and "import_module" in ast.unparse(node.func)]
+    assert by_name == [("__getattr__", "importlib.import_module(f'{__name__}.pretrained')")]
 
 
 def test_each_package_imports_only_the_packages_below_it():

@@ -39,8 +39,19 @@ def test_an_old_module_name_is_the_new_module_with_a_warning_naming_it():
     assert "emmi_gym.training is now emmi_gym.tools.training; the old name goes in emmi-gym 0.4.0" in warned[0]
 
 
+def test_importing_the_package_registers_the_ids_and_nothing_else():
+    """No import hook, no module of the tools and no old name comes with ``import emmi_gym``; the shipped agents
+    come on first use of ``emmi_gym.pretrained``."""
+    done = run_python("import sys\nhooks = (list(sys.meta_path), list(sys.path_hooks))\nimport emmi_gym, gymnasium\n"
+                      "print((list(sys.meta_path), list(sys.path_hooks)) == hooks)\n"
+                      "print(sorted(m for m in sys.modules if m.startswith(('emmi_gym.tools', 'emmi_gym._moved'))))\n"
+                      "print('emmi_gym/LoopCorridor-v1' in gymnasium.registry, emmi_gym.pretrained.__name__)")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["True", "[]", "True emmi_gym.tools.pretrained"]
+
+
 def test_a_name_that_never_was_is_still_an_import_error():
-    with warnings.catch_warnings(), pytest.raises(ModuleNotFoundError, match="emmi_gym.tools.training.no_such_module"):
+    with warnings.catch_warnings(), pytest.raises(ModuleNotFoundError, match="emmi_gym.training.no_such_module"):
         warnings.simplefilter("ignore", FutureWarning)
         __import__("emmi_gym.training.no_such_module")
 

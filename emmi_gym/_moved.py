@@ -1,0 +1,48 @@
+"""The modules that moved, importable under their old names: each old name is a small module at its old path
+that calls :func:`alias_moved`, so nothing is installed in the import system when ``emmi_gym`` is imported and
+an old name costs something only when it is imported.
+
+An alias puts the module it stands for in ``sys.modules`` under its own name, which the import system then
+returns for it (a module may replace itself there while it is imported): ``emmi_gym.training.train`` *is*
+``emmi_gym.tools.training.train``, one module with one set of classes, so what pickles name by their old module
+(the policy classes of a model saved before 0.3.0) loads as the current classes.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+import warnings
+from types import ModuleType
+
+from . import MOVED_TO_TOOLS
+from .inputs.extras import extra_of
+
+#: Old name -> (its module now, the release the old name goes in; None for a name that stays).
+MOVED = {
+    **{f"emmi_gym.{name}": (f"emmi_gym.tools.{name}", None if name == "pretrained" else "0.4.0")
+       for name in MOVED_TO_TOOLS},
+}
+
+
+def alias_moved(old: str, module: ModuleType) -> None:
+    """Make the module being imported as ``old`` (a key of :data:`MOVED`) the ``module`` it moved to, warning (a
+    ``FutureWarning`` naming the new name and the release the old one goes in) unless the old name stays. For a
+    package, every module under the new one is imported now and named by its old name too (a module that needs
+    an optional extra not installed is left out: importing it by either name says what is missing)."""
+    new, gone_in = MOVED[old]
+    if module.__name__ != new:
+        raise ValueError(f"{old} moved to {new}, not {module.__name__}")
+    if gone_in is not None:
+        warnings.warn(f"{old} is now {new}; the old name goes in emmi-gym {gone_in}", FutureWarning, stacklevel=3)
+    sys.modules[old] = module
+    for info in pkgutil.walk_packages(getattr(module, "__path__", []), f"{new}."):
+        try:
+            # a module that moved again is named by where it is now, without its own alias's warning
+            inner = importlib.import_module(MOVED.get(info.name, (info.name,))[0])
+        except ModuleNotFoundError as error:
+            if extra_of(error.name) is None:
+                raise
+            continue
+        sys.modules[old + info.name[len(new):]] = inner
