@@ -23,6 +23,8 @@ from .inputs.extras import extra_of
 MOVED = {
     **{f"emmi_gym.{name}": (f"emmi_gym.tools.{name}", None if name == "pretrained" else "0.4.0")
        for name in MOVED_TO_TOOLS},
+    **{f"emmi_gym.tools.experiments.{name}": (f"emmi_gym.tools.evaluation.{name}", "0.5.0")
+       for name in ("comparison", "directions", "episodes", "intervals", "loop_order", "robot_time")},
 }
 
 
@@ -46,3 +48,17 @@ def alias_moved(old: str, module: ModuleType) -> None:
                 raise
             continue
         sys.modules[old + info.name[len(new):]] = inner
+
+
+def moved_names(old: str, module: ModuleType, names: tuple[str, ...], gone_in: str):
+    """A module ``__getattr__`` (PEP 562) for the module ``old``, whose ``names`` moved to ``module``: each gives
+    ``module``'s, with a ``FutureWarning`` naming where it is now and the release the old name goes in."""
+
+    def __getattr__(name: str):
+        if name not in names:
+            raise AttributeError(f"module {old!r} has no attribute {name!r}")
+        warnings.warn(f"{old}.{name} is now {module.__name__}.{name}; the old name goes in emmi-gym {gone_in}",
+                      FutureWarning, stacklevel=2)
+        return getattr(module, name)
+
+    return __getattr__

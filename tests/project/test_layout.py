@@ -22,15 +22,17 @@ LIBRARY = {
     "env": {"geometry", "inputs", "certainty", "world", "slam", "scoring", "navigation"},
 }
 #: The tools over the library (``emmi_gym/tools/``), bottom up: what each imports of the library and of the
-#: tools below it; ``cli`` is ``tools/cli.py`` (and ``tools/__init__.py``).
+#: tools below it; ``cli`` is ``tools/cli.py`` (and ``tools/__init__.py``). Training and the experiments both stand
+#: on ``evaluation`` and neither imports the other.
 TOOLS = {
     "policies": {"world"},
+    "evaluation": {"concurrency", "certainty", "formats", "world", "policies"},
     "experiments": {"geometry", "inputs", "concurrency", "certainty", "formats", "world", "slam", "scoring",
-                    "policies"},
-    "training": {"inputs", "concurrency", "formats", "scoring", "env", "policies", "experiments"},
+                    "policies", "evaluation"},
+    "training": {"inputs", "concurrency", "formats", "scoring", "env", "policies", "evaluation"},
     "pretrained": {"inputs", "training"},
-    "commands": {"inputs", "concurrency", "certainty", "formats", "world", "slam", "env", "policies", "experiments",
-                 "training", "pretrained"},
+    "commands": {"inputs", "concurrency", "certainty", "formats", "world", "slam", "env", "policies", "evaluation",
+                 "experiments", "training", "pretrained"},
     "cli": {"commands"},
 }
 ALLOWED = LIBRARY | TOOLS
@@ -124,6 +126,13 @@ def test_outside_the_tools_only_their_old_names_and_the_command_import_them():
                if isinstance(function, ast.FunctionDef) for node in ast.walk(function)
                if isinstance(node, ast.Call) and "import_module" in ast.unparse(node.func)]
     assert by_name == [("__getattr__", "importlib.import_module(f'{__name__}.pretrained')")]
+
+
+def test_training_and_the_experiments_never_import_each_other():
+    """What both need (episodes, their measures, comparisons) is ``evaluation``, below both: training a model
+    does not pull in the A/B experiment, and an experiment does not need the ``train`` extra."""
+    assert "experiments" not in TOOLS["training"] and "training" not in TOOLS["experiments"]
+    assert {"experiments", "training"} & TOOLS["evaluation"] == set()
 
 
 def test_each_package_imports_only_the_packages_below_it():

@@ -31,7 +31,7 @@ from torch.optim.optimizer import register_optimizer_step_post_hook, register_op
 from ...concurrency.interrupts import RunStopped
 from ...concurrency.parallel import ActorFailed, leave_terminal_signals, one_kernel_thread
 from ...formats.atomic_files import write_atomically
-from ..experiments.loop_order import LoopOrderInfo
+from ..evaluation.loop_order import LoopOrderInfo
 from .callbacks import (
     DecisionProgress,
     NonFiniteError,
