@@ -270,6 +270,61 @@ def test_no_module_reaches_into_another_objects_private_attributes():
     assert reaches == {}
 
 
+def is_private(name: str) -> bool:
+    """An underscore name that is not a dunder (``_last_obs``, not ``__init__``)."""
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def privates_of_self(cls: ast.ClassDef, methods=None, stored: bool = False) -> set[str]:
+    """The underscore attributes of ``self`` that the methods of ``cls`` (those named in ``methods``, if given)
+    read or write (only those they assign, with ``stored``)."""
+    return {node.attr for method in cls.body if isinstance(method, ast.FunctionDef)
+            and (methods is None or method.name in methods) for node in ast.walk(method)
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "self"
+            and is_private(node.attr) and (not stored or isinstance(node.ctx, ast.Store))}
+
+
+def private_names_defined(cls: ast.ClassDef) -> set[str]:
+    """The underscore names the body of ``cls`` defines: its methods, nested classes and class attributes."""
+    names = {node.name for node in cls.body if isinstance(node, (ast.FunctionDef, ast.ClassDef))}
+    names |= {target.id for node in cls.body if isinstance(node, ast.Assign) for target in node.targets
+              if isinstance(target, ast.Name)}
+    names |= {node.target.id for node in cls.body
+              if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)}
+    return {name for name in names if is_private(name)}
+
+
+def undeclared_privates(source: str) -> dict[str, list[str]]:
+    """For each class of ``source``: the ``self._name`` its methods read or write that neither its body, nor its
+    ``__init__``, nor a base class of the same module declares: a private it inherits from a class of another
+    library (SB3's ``self._last_obs``), whose owner may rename it or change what it means."""
+    classes = {node.name: node for node in ast.walk(ast.parse(source)) if isinstance(node, ast.ClassDef)}
+
+    def declared(cls: ast.ClassDef) -> set[str]:
+        bases = [classes[b.id] for b in cls.bases if isinstance(b, ast.Name) and b.id in classes]
+        own = private_names_defined(cls) | privates_of_self(cls, ("__init__",), stored=True)
+        return own.union(*(declared(base) for base in bases))
+
+    return {name: sorted(used) for name, cls in classes.items() if (used := privates_of_self(cls) - declared(cls))}
+
+
+def test_undeclared_privates_are_found():
+    source = ("class A(Base):\n    def __init__(self):\n        self._a = 1\n    def _own(self):\n        pass\n"
+              "    def step(self):\n        self._own()\n        self._a = self._last_obs\n        self._b = 2\n"
+              "class B(A):\n    def go(self):\n        return self._a, self._update_info_buffer(), self.__class__\n")
+    assert undeclared_privates(source) == {"A": ["_b", "_last_obs"], "B": ["_update_info_buffer"]}
+
+
+def test_no_class_uses_a_private_it_inherits_from_another_library():
+    """A class of the package writes and reads only the underscore attributes it declares (or a base class beside
+    it does): an override such as rollout workers' ``collect_rollouts`` goes through the public names of the
+    library it extends, never the private state of its base class (``tests/project/test_imports.py`` checks
+    that no private a class declares is also one of a library's base class)."""
+    found = {str(path.relative_to(ROOT)): used for path in sorted(ROOT.rglob("*.py"))
+             if (used := undeclared_privates(path.read_text()))}
+    assert found == {}
+
+
 def attributes_set_outside_init(source: str) -> dict[str, list[str]]:
     """For each class of ``source``: the ``self.`` attributes its other methods assign that neither its
     ``__init__`` nor the ``__init__`` of a base class of the same module assigns."""
