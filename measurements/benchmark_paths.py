@@ -11,7 +11,7 @@ first held-out episode, from its ``benchmark_episodes.csv``). It serves any benc
 the scripted policies (``LoopCorridor-v1``, ``LoopOrder-v1``). Every policy plays the env of the emmi agent's held-out
 evaluation (the reward changes what an agent learns, not what an episode shows it), so the episodes
 share the world, the start and the random draws up to the first decision
-(:func:`emmi_gym.tools.experiments.comparison.play_on_world`). The panels mark the revisit targets each
+(:func:`emmi_gym.tools.evaluation.comparison.play_on_world`). The panels mark the revisit targets each
 chose (where it went back); the printed table gives, per policy, whether it closed the loop first,
 its decisions, revisit targets, robot time, ATE and accuracy against the oracle map.
 """
@@ -22,8 +22,8 @@ import argparse
 from pathlib import Path
 
 from emmi_gym.tools.commands import arguments
-from emmi_gym.tools.experiments.comparison import play_on_world, plot_pair
-from emmi_gym.tools.experiments.loop_order import LOOP_ORDER_KEY
+from emmi_gym.tools.evaluation.comparison import play_on_world, plot_pair
+from emmi_gym.tools.evaluation.loop_order import LOOP_ORDER_KEY
 from emmi_gym.tools.experiments.report import read_csv
 from emmi_gym.tools.training.evaluate import TrainedAgent, comparison_settings, format_table
 from emmi_gym.tools.training.run_folders import RunFolder

@@ -1,5 +1,5 @@
 """Policies evaluated in separate runs on the same worlds and seeds, paired: an agent trained later beside the
-baselines played once, of the final maps and at equal robot time (:mod:`emmi_gym.tools.experiments.robot_time`).
+baselines played once, of the final maps and at equal robot time (:mod:`emmi_gym.tools.evaluation.robot_time`).
 
     emmi-gym evaluate RUN/model.zip --name pose_entropy_seed0 --world dungeon_maps/test --episodes 50 --out A
     python measurements/evaluations_paired.py A BASELINES --policy pose_entropy_seed0 \\
@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
-from emmi_gym.tools.experiments.comparison import SCORES, difference_cell, markdown_table, paired
-from emmi_gym.tools.experiments.directions import format_number
-from emmi_gym.tools.experiments.robot_time import TIME, TRACED, at_equal_robot_time, with_traces
+from emmi_gym.tools.evaluation.comparison import SCORES, difference_cell, markdown_table, paired
+from emmi_gym.tools.evaluation.directions import format_number
+from emmi_gym.tools.evaluation.robot_time import TIME, TRACED, at_equal_robot_time, with_traces
 from emmi_gym.world.map_sets import world_name
 
 KEYS = ("world", "seed", "policy")

@@ -44,7 +44,7 @@ from emmi_gym.env import REWARDS, EnvConfig
 from emmi_gym.env.reward_registry import privileged_rewards
 from emmi_gym.inputs.validation import build
 from emmi_gym.tools.commands import arguments
-from emmi_gym.tools.experiments.comparison import ComparisonSettings, compare_on, policy_name, worlds_of
+from emmi_gym.tools.evaluation.comparison import ComparisonSettings, compare_on, policy_name, worlds_of
 from emmi_gym.tools.experiments.reward_alignment import (
     QUALITIES,
     Discount,

@@ -18,7 +18,7 @@ from collections import defaultdict
 import numpy as np
 
 from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
-from emmi_gym.tools.experiments.intervals import difference_interval
+from emmi_gym.tools.evaluation.intervals import difference_interval
 
 SCORES = ("ate", "oracle_accuracy", "wall_consistency", "coverage", "sim_steps")
 KEYS = ("plan", "seed", "policy")

@@ -23,7 +23,7 @@ import yaml
 from emmi_gym import pretrained
 from emmi_gym.env.reward_registry import reward_named
 from emmi_gym.tools.commands import arguments
-from emmi_gym.tools.experiments.comparison import markdown_table, policy_means
+from emmi_gym.tools.evaluation.comparison import markdown_table, policy_means
 from emmi_gym.tools.experiments.report import read_csv
 from emmi_gym.tools.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.tools.training.run_folders import RunFolder

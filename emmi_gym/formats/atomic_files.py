@@ -3,6 +3,8 @@ place, so a run killed mid-write leaves the previous file (or none), never half 
 
 from __future__ import annotations
 
+import csv
+import io
 import os
 from pathlib import Path
 
@@ -27,3 +29,14 @@ def write_atomically(path, write) -> Path:
 def write_text_atomically(path, text: str) -> Path:
     """:func:`write_atomically` of ``text`` (UTF-8)."""
     return write_atomically(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    """``rows`` as a CSV file with a header of every key any row has (an empty cell where a row lacks one),
+    written whole (:func:`write_text_atomically`)."""
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=columns)
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomically(path, text.getvalue())

@@ -20,6 +20,7 @@ from helpers import ROOT
 
 import emmi_gym
 import emmi_gym.tools.cli
+from emmi_gym._moved import MOVED
 from emmi_gym.env import REWARDS
 from emmi_gym.env.definitions import shipped_definitions
 from emmi_gym.env.registration import ENV_IDS
@@ -154,7 +155,8 @@ def test_the_site_navigation_lists_every_page():
 
 #: Public modules without an API page, and why.
 NOT_IN_API = {"emmi_gym.tools.cli": "the command line has its own page, docs/cli.md",
-              "emmi_gym.tools.commands": "the command line's subcommands, on docs/cli.md (what they run has API pages)"}
+              "emmi_gym.tools.commands": "the command line's subcommands, on docs/cli.md (what they run has API pages)",
+              **{old: f"an old name of {new}, documented under it" for old, (new, _) in MOVED.items()}}
 
 
 def test_every_public_module_has_an_api_page():

@@ -22,18 +22,23 @@ LIBRARY = {
     "env": {"geometry", "inputs", "certainty", "world", "slam", "scoring", "navigation"},
 }
 #: The tools over the library (``emmi_gym/tools/``), bottom up: what each imports of the library and of the
-#: tools below it; ``cli`` is ``tools/cli.py`` (and ``tools/__init__.py``).
+#: tools below it; ``cli`` is ``tools/cli.py`` (and ``tools/__init__.py``). Training and the experiments both stand
+#: on ``evaluation`` and neither imports the other.
 TOOLS = {
     "policies": {"world"},
+    "evaluation": {"concurrency", "certainty", "formats", "world", "policies"},
     "experiments": {"geometry", "inputs", "concurrency", "certainty", "formats", "world", "slam", "scoring",
-                    "policies"},
-    "training": {"inputs", "concurrency", "formats", "scoring", "env", "policies", "experiments"},
+                    "policies", "evaluation"},
+    "training": {"inputs", "concurrency", "formats", "scoring", "env", "policies", "evaluation"},
     "pretrained": {"inputs", "training"},
-    "commands": {"inputs", "concurrency", "certainty", "formats", "world", "slam", "env", "policies", "experiments",
-                 "training", "pretrained"},
+    "commands": {"inputs", "concurrency", "certainty", "formats", "world", "slam", "env", "policies", "evaluation",
+                 "experiments", "training", "pretrained"},
     "cli": {"commands"},
 }
 ALLOWED = LIBRARY | TOOLS
+#: The tools' old names (``emmi_gym.training``, ``emmi_gym/pretrained.py``, ...): alias modules at the top of the
+#: package, each importing the one tools package it names (:mod:`emmi_gym._moved`).
+OLD_NAMES = set(emmi_gym.MOVED_TO_TOOLS)
 
 
 def layer(module: list[str]) -> str | None:
@@ -75,11 +80,15 @@ def modules_of(path: Path) -> tuple[list[str], str]:
 
 
 def test_the_tree_shows_the_two_halves():
-    """The library's packages at the top of ``emmi_gym``, the tools under ``emmi_gym/tools``, nothing else."""
+    """The library's packages at the top of ``emmi_gym``, the tools under ``emmi_gym/tools``, the tools' old names
+    (aliases), nothing else."""
     top = {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file()}
-    assert top == set(LIBRARY) | {"tools", "worlds_data"}
+    assert top == set(LIBRARY) | {"tools", "worlds_data"} | {name for name in OLD_NAMES if (ROOT / name).is_dir()}
     assert {p.name for p in (ROOT / "tools").iterdir() if (p / "__init__.py").is_file()} == set(TOOLS) - {"cli"}
-    assert sorted(p.name for p in ROOT.glob("*.py")) == ["__init__.py", "__main__.py"]
+    assert sorted(p.stem for p in ROOT.glob("*.py")) == sorted({"__init__", "__main__", "_moved"} | OLD_NAMES - top)
+    for name in OLD_NAMES:  # each old name is an alias, no code of its own
+        alias = ROOT / name / "__init__.py" if name in top else ROOT / f"{name}.py"
+        assert f"alias_moved(__name__, {name})" in alias.read_text(), alias
     assert sorted(p.name for p in (ROOT / "tools").glob("*.py")) == ["__init__.py", "cli.py"]
 
 
@@ -98,6 +107,32 @@ def test_the_library_never_imports_the_tools():
              if modules_of(path)[1] in LIBRARY
              and (found := imported_layers(path.read_text(), modules_of(path)[0]) & set(TOOLS))]
     assert not wrong, wrong
+
+
+def test_outside_the_tools_only_their_old_names_and_the_command_import_them():
+    """The package's root imports the library (to register the ids) and, lazily in its ``__getattr__``, the
+    old name ``emmi_gym.pretrained`` (PEP 562); each old name imports the one tools package it names;
+    ``python -m emmi_gym`` runs the command. No other module outside ``emmi_gym/tools`` imports the tools."""
+    found = {}
+    for path in sorted(ROOT.rglob("*.py")):
+        module, own = modules_of(path)
+        if own not in LIBRARY and module[1] not in ("tools", "worlds_data"):
+            found[".".join(module).removesuffix(".__init__")] = imported_layers(path.read_text(), module) & set(TOOLS)
+    assert found.pop("emmi_gym.__main__") == {"cli"}
+    assert {name: layers for name, layers in found.items() if layers} == \
+        {f"emmi_gym.{name}": {name} for name in OLD_NAMES}
+    root = ast.parse((ROOT / "__init__.py").read_text())
+    by_name = [(function.name, ast.unparse(node)) for function in ast.walk(root)
+               if isinstance(function, ast.FunctionDef) for node in ast.walk(function)
+               if isinstance(node, ast.Call) and "import_module" in ast.unparse(node.func)]
+    assert by_name == [("__getattr__", "importlib.import_module(f'{__name__}.pretrained')")]
+
+
+def test_training_and_the_experiments_never_import_each_other():
+    """What both need (episodes, their measures, comparisons) is ``evaluation``, below both: training a model
+    does not pull in the A/B experiment, and an experiment does not need the ``train`` extra."""
+    assert "experiments" not in TOOLS["training"] and "training" not in TOOLS["experiments"]
+    assert {"experiments", "training"} & TOOLS["evaluation"] == set()
 
 
 def test_each_package_imports_only_the_packages_below_it():
@@ -233,6 +268,61 @@ def test_no_module_reaches_into_another_objects_private_attributes():
     reaches = {str(path.relative_to(ROOT)): found for path in sorted(ROOT.rglob("*.py"))
                if (found := private_reaches(path.read_text()))}
     assert reaches == {}
+
+
+def is_private(name: str) -> bool:
+    """An underscore name that is not a dunder (``_last_obs``, not ``__init__``)."""
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def privates_of_self(cls: ast.ClassDef, methods=None, stored: bool = False) -> set[str]:
+    """The underscore attributes of ``self`` that the methods of ``cls`` (those named in ``methods``, if given)
+    read or write (only those they assign, with ``stored``)."""
+    return {node.attr for method in cls.body if isinstance(method, ast.FunctionDef)
+            and (methods is None or method.name in methods) for node in ast.walk(method)
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "self"
+            and is_private(node.attr) and (not stored or isinstance(node.ctx, ast.Store))}
+
+
+def private_names_defined(cls: ast.ClassDef) -> set[str]:
+    """The underscore names the body of ``cls`` defines: its methods, nested classes and class attributes."""
+    names = {node.name for node in cls.body if isinstance(node, (ast.FunctionDef, ast.ClassDef))}
+    names |= {target.id for node in cls.body if isinstance(node, ast.Assign) for target in node.targets
+              if isinstance(target, ast.Name)}
+    names |= {node.target.id for node in cls.body
+              if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)}
+    return {name for name in names if is_private(name)}
+
+
+def undeclared_privates(source: str) -> dict[str, list[str]]:
+    """For each class of ``source``: the ``self._name`` its methods read or write that neither its body, nor its
+    ``__init__``, nor a base class of the same module declares: a private it inherits from a class of another
+    library (SB3's ``self._last_obs``), whose owner may rename it or change what it means."""
+    classes = {node.name: node for node in ast.walk(ast.parse(source)) if isinstance(node, ast.ClassDef)}
+
+    def declared(cls: ast.ClassDef) -> set[str]:
+        bases = [classes[b.id] for b in cls.bases if isinstance(b, ast.Name) and b.id in classes]
+        own = private_names_defined(cls) | privates_of_self(cls, ("__init__",), stored=True)
+        return own.union(*(declared(base) for base in bases))
+
+    return {name: sorted(used) for name, cls in classes.items() if (used := privates_of_self(cls) - declared(cls))}
+
+
+def test_undeclared_privates_are_found():
+    source = ("class A(Base):\n    def __init__(self):\n        self._a = 1\n    def _own(self):\n        pass\n"
+              "    def step(self):\n        self._own()\n        self._a = self._last_obs\n        self._b = 2\n"
+              "class B(A):\n    def go(self):\n        return self._a, self._update_info_buffer(), self.__class__\n")
+    assert undeclared_privates(source) == {"A": ["_b", "_last_obs"], "B": ["_update_info_buffer"]}
+
+
+def test_no_class_uses_a_private_it_inherits_from_another_library():
+    """A class of the package writes and reads only the underscore attributes it declares (or a base class beside
+    it does): an override such as rollout workers' ``collect_rollouts`` goes through the public names of the
+    library it extends, never the private state of its base class (``tests/project/test_imports.py`` checks
+    that no private a class declares is also one of a library's base class)."""
+    found = {str(path.relative_to(ROOT)): used for path in sorted(ROOT.rglob("*.py"))
+             if (used := undeclared_privates(path.read_text()))}
+    assert found == {}
 
 
 def attributes_set_outside_init(source: str) -> dict[str, list[str]]:

@@ -1,5 +1,5 @@
 """``emmi-gym compare-policies``: scripted policies on many worlds, paired by world and seed
-(:mod:`emmi_gym.tools.experiments.comparison`), with a table of paired differences and one world's maps."""
+(:mod:`emmi_gym.tools.evaluation.comparison`), with a table of paired differences and one world's maps."""
 
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from ...inputs.json_files import parse_json
     from ...inputs.user_paths import output_folder
     from ...inputs.validation import build
-    from ..experiments.comparison import (
+    from ..evaluation.comparison import (
         ComparisonSettings,
         compare,
         markdown_table,

@@ -44,7 +44,7 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ...inputs.user_paths import output_folder
-    from ..experiments.episodes import summarise
+    from ..evaluation.episodes import summarise
     from ..training.evaluate import evaluate_model, format_table
     from ..training.run_folders import RunFolder
     from ..training.train import set_torch_threads
@@ -83,9 +83,9 @@ def _model_to_evaluate(args: argparse.Namespace) -> tuple[Path, str]:
 def _evaluate_beside_baselines(args: argparse.Namespace, model: Path, name: str, config) -> int:
     from ...formats.atomic_files import write_text_atomically
     from ...inputs.user_paths import output_folder
-    from ..experiments.comparison import markdown_table, policy_means
+    from ..evaluation.comparison import markdown_table, policy_means
+    from ..evaluation.robot_time import at_equal_robot_time, trace_rows, without_traces
     from ..experiments.report import write_csv
-    from ..experiments.robot_time import at_equal_robot_time, trace_rows, without_traces
     from ..training.evaluate import OWN_WORLD, compare_model, format_table, write_figures
 
     if args.video:

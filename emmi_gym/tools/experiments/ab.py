@@ -15,18 +15,19 @@ from dataclasses import dataclass, field
 
 import gymnasium as gym
 import numpy as np
-from scipy import ndimage
 
-from ...certainty import observed_cells
+from ..._moved import moved_names
 from ...concurrency.parallel import run_in_processes
 from ...scoring.scores import absolute_trajectory_error, map_accuracy
-from ...world.ground_truth import FREE, UNKNOWN
+from ...world.ground_truth import UNKNOWN
+from ..evaluation import loop_order
+from ..evaluation.loop_order import NEW_AREA_PLACE, new_area_now
 from ..policies import make_policy
 
 #: The two arms of the experiment and their scripted policies.
 POLICIES = {"A": "close_loop_first", "B": "explore_first"}
-#: The world's place that lies in the unexplored area B enters.
-NEW_AREA_PLACE = "target_b"
+#: The names that moved to :mod:`emmi_gym.tools.evaluation.loop_order` (deprecated here).
+__getattr__ = moved_names(__name__, loop_order, ("closed_loop_first", "new_area_mask"), "0.5.0")
 
 
 @dataclass(frozen=True)
@@ -84,43 +85,6 @@ class ABRun:
         """The measures of the update at ``event`` ("decision", "first_goal", "second_goal", "end")."""
         index = len(self.rows) - 1 if event == "end" else getattr(self, event)
         return None if index is None else self.rows[index]
-
-
-def new_area_mask(observed_at_decision: np.ndarray, truth_grid: np.ndarray, geometry, place,
-                  margin: float = 0.3) -> np.ndarray:
-    """The cells of the unexplored area round ``place``: the true free space that was still unknown
-    at the decision point and is connected to ``place``'s cell, grown by ``margin`` metres so that
-    its walls count, restricted to cells still unknown then that the ground truth labels."""
-    unknown_then = ~observed_at_decision
-    labels, _ = ndimage.label(unknown_then & (truth_grid == FREE))
-    row, col = geometry.cell_of(place.x, place.y)
-    if not geometry.inside(row, col) or labels[row, col] == 0:
-        raise ValueError(f"the place {NEW_AREA_PLACE!r} at ({place.x}, {place.y}) was already mapped at the "
-                         "decision point or lies off the grid: it does not mark an unexplored area")
-    region = labels == labels[row, col]
-    grown = ndimage.binary_dilation(region, iterations=max(1, int(round(margin / geometry.resolution))))
-    return grown & unknown_then & (truth_grid != UNKNOWN)
-
-
-def new_area_now(core) -> np.ndarray:
-    """:func:`new_area_mask` for an environment (unwrapped) as it is now, e.g. at the decision point."""
-    return new_area_mask(observed_cells(core.expected_map), core.truth.grid, core.geometry,
-                         core.world.place(NEW_AREA_PLACE))
-
-
-def closed_loop_first(true_xy: np.ndarray, world, geometry, new_area: np.ndarray) -> bool | None:
-    """Whether a true path came back to the loop's start (``target_a``, within the policies'
-    ``GOAL_RADIUS``) before it entered ``new_area``; None if it did neither."""
-    from ..policies import GOAL_RADIUS
-
-    goal = world.place("target_a")
-    back = np.flatnonzero(np.hypot(true_xy[:, 0] - goal.x, true_xy[:, 1] - goal.y) <= GOAL_RADIUS)
-    rows, cols = geometry.cell_of(true_xy[:, 0], true_xy[:, 1])
-    inside = geometry.inside(rows, cols)
-    entered = np.flatnonzero(inside)[new_area[rows[inside], cols[inside]]]
-    if back.size == 0 and entered.size == 0:
-        return None
-    return bool(back.size and (entered.size == 0 or back[0] < entered[0]))
 
 
 def hypotheses_of(paths: np.ndarray, update: int) -> int:

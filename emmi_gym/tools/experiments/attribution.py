@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .loop_order import LOOP_ORDER_KEY
+from ..evaluation.loop_order import LOOP_ORDER_KEY
 
 PREDICTORS = {LOOP_ORDER_KEY: "closed the loop first", "revisit_share": "revisit share",
               "sim_steps": "robot time (1000 steps)"}

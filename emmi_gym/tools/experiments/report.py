@@ -4,17 +4,16 @@ the figures in the layout of the paper's Fig. 6 (c)-(e) maps and (f)-(h) metrics
 from __future__ import annotations
 
 import csv
-import io
 import math
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from ...formats.atomic_files import write_atomically, write_text_atomically
-from ..experiments.directions import better_side, count_better, digits
+from ...formats.atomic_files import write_atomically, write_csv, write_text_atomically
+from ..evaluation.directions import better_side, count_better, digits
+from ..evaluation.intervals import difference_interval, measure_interval
 from .ab import POLICIES, ABRun
-from .intervals import difference_interval, measure_interval
 
 #: Measures plotted per RBPF update, as the paper's Fig. 6 (f), (g), (h).
 FIGURE_MEASURES = (("emmi", "EMMI (bits/cell)"), ("pose_entropy", "pose entropy (nats)"),
@@ -89,7 +88,7 @@ def paired_differences(rows: list[dict], column: str) -> np.ndarray:
 def summary_table(rows: list[dict]) -> dict[str, dict[str, tuple]]:
     """Per column: the mean interval under A, under B, and of the paired difference A - B
     (with, for the difference, how the seeds fall on the better side: a
-    :class:`~emmi_gym.tools.experiments.directions.Tally`, ``None`` where the measure has no better side)."""
+    :class:`~emmi_gym.tools.evaluation.directions.Tally`, ``None`` where the measure has no better side)."""
     table = {}
     for column in SUMMARY_COLUMNS:
         entry = {arm: measure_interval([r[column] for r in rows if r["arm"] == arm], column) for arm in POLICIES}
@@ -160,17 +159,6 @@ def markdown_summary(rows: list[dict], settings_text: str) -> str:
         lines += ["", f"Did not reach both goals within the decision budget ({len(failed)} of {len(rows)} runs; their "
                   f"changes and scores are in the table, as far as they got): {', '.join(failed)}."]
     return "\n".join(lines) + "\n"
-
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    """``rows`` as a CSV file with a header of every key any row has (an empty cell where a row lacks one),
-    written under a temporary name and renamed into place."""
-    columns = list(dict.fromkeys(k for row in rows for k in row))
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=columns)
-    writer.writeheader()
-    writer.writerows(rows)
-    write_text_atomically(path, text.getvalue())
 
 
 def read_csv(path) -> list[dict]:

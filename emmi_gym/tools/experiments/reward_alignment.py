@@ -2,7 +2,7 @@
 
 A learner comes to prefer what earns most, so a reward can only teach mapping better where mapping
 better pays. The scripted policies are played on the same (world, seed) episodes with every step's
-reward components kept (:func:`~emmi_gym.tools.experiments.comparison.compare_on`); each reward variant,
+reward components kept (:func:`~emmi_gym.tools.evaluation.comparison.compare_on`); each reward variant,
 time cost and discount is then applied to the kept steps, and compared with the ground truth each
 episode ended with:
 
@@ -36,7 +36,7 @@ from itertools import combinations
 
 import numpy as np
 
-from .intervals import mean_interval
+from ..evaluation.intervals import mean_interval
 
 #: Final map qualities compared, each with the sign that makes higher better.
 QUALITIES = {"oracle_accuracy": 1.0, "ate": -1.0}

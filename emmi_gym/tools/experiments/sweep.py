@@ -40,8 +40,8 @@ from ...inputs.errors import FieldError
 from ...inputs.validation import Integer, Mapping, Maybe, OptionError, Text, Tuple, build, check_fields, option
 from ...inputs.yaml_files import read_yaml_file
 from ...world.presets import odometry_config
+from ..evaluation.intervals import difference_interval, measure_interval
 from .ab import ABSettings, run_ab
-from .intervals import difference_interval, measure_interval
 from .report import paired_differences, read_csv, summary_rows, write_csv
 
 #: The per-setting measures: A - B paired, with their labels (the robot time of each arm is reported beside).

@@ -16,8 +16,8 @@ from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 from ...concurrency.progress import progress_bar
 from ...formats.atomic_files import write_text_atomically
 from ...inputs.csv_files import read_csv_file
-from ..experiments.episodes import GROUND_TRUTH, nanmean
-from ..experiments.loop_order import LOOP_ORDER_KEY
+from ..evaluation.episodes import GROUND_TRUTH, nanmean
+from ..evaluation.loop_order import LOOP_ORDER_KEY
 
 #: The folder, inside the evaluation's, where SB3 writes its files before they are renamed into place.
 STAGING = ".writing"

@@ -1,5 +1,5 @@
 """The learning curve of a training run from its checkpoints: every checkpoint plays the same held-out
-episodes, all of them in parallel (:func:`emmi_gym.tools.experiments.comparison.compare_on`), and each
+episodes, all of them in parallel (:func:`emmi_gym.tools.evaluation.comparison.compare_on`), and each
 checkpoint's row is the mean of the episodes' ground-truth measures.
 
 ``emmi-gym train``'s periodic evaluation plays one episode at a time in the learner's process, while
@@ -11,12 +11,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ...formats.atomic_files import write_csv
 from ...inputs.user_paths import output_folder
 from ...inputs.validation import MAX_EPISODES
-from ..experiments.comparison import compare_on, episodes_on
-from ..experiments.episodes import nanmean
-from ..experiments.loop_order import LOOP_ORDER_KEY
-from ..experiments.report import write_csv
+from ..evaluation.comparison import compare_on, episodes_on
+from ..evaluation.episodes import nanmean
+from ..evaluation.loop_order import LOOP_ORDER_KEY
 from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings
 from .run_folders import RunFolder
 
@@ -30,7 +30,7 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
     """``(curve, rows)``: ``curve`` a row per whole checkpoint of ``run_dir`` (``timesteps``, then the
     mean of each of :data:`MEASURES` over the episodes, of the finite values: ``sim_steps_to_target``
     over those that reached the target), fewest decisions first; ``rows`` every episode, its policy
-    named ``model_<N>``. The episodes are :func:`~emmi_gym.tools.experiments.comparison.episodes_on`
+    named ``model_<N>``. The episodes are :func:`~emmi_gym.tools.evaluation.comparison.episodes_on`
     ``(world, episodes, seed)`` in the run's evaluation env (by default on that env's own world); a
     damaged checkpoint (cut short by a kill) is skipped with a warning."""
     if not 1 <= episodes <= MAX_EPISODES:

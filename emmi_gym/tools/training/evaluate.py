@@ -8,8 +8,8 @@ from functools import lru_cache
 from pathlib import Path
 
 from ...env.seeds import HELD_OUT_SEED
-from ..experiments.directions import better_side, format_number
-from ..experiments.episodes import ModelActor, info_options, play_episodes
+from ..evaluation.directions import better_side, format_number
+from ..evaluation.episodes import ModelActor, info_options, play_episodes
 from .run_folders import RunFolder
 from .run_folders.model_files import load_model_file
 from .train import make_agent_env
@@ -23,7 +23,7 @@ EVALUATION_SEED = HELD_OUT_SEED
 @dataclass(frozen=True)
 class TrainedAgent:
     """A trained model to compare beside the scripted policies
-    (:func:`emmi_gym.tools.experiments.comparison.compare_on`): the ``.zip`` that ``emmi-gym train`` wrote
+    (:func:`emmi_gym.tools.evaluation.comparison.compare_on`): the ``.zip`` that ``emmi-gym train`` wrote
     (its ``config.yaml`` beside it) and the name its rows carry."""
 
     path: str
@@ -64,7 +64,7 @@ def evaluate_model(model_path, episodes: int = 10, seed: int = EVALUATION_SEED, 
     """Run ``episodes`` episodes of the model in the held-out evaluation's environment of its run's
     configuration (the training env with ``eval.env_kwargs``; ``config``: that configuration, if the
     caller has loaded it already); with ``keep_trace``, each row's ``trace``
-    (:func:`~emmi_gym.tools.experiments.episodes.play_episode`)."""
+    (:func:`~emmi_gym.tools.evaluation.episodes.play_episode`)."""
     model_path = Path(model_path)
     model, config = load_model(model_path, config)
     env = make_agent_env(config.env_id, {**config.eval_env_kwargs, **info_options(keep_trace=keep_trace)},
@@ -91,11 +91,11 @@ def load_model(model_path, config=None):
 
 
 def comparison_settings(config):
-    """The env of a run's held-out evaluations as :class:`~emmi_gym.tools.experiments.comparison.ComparisonSettings`
+    """The env of a run's held-out evaluations as :class:`~emmi_gym.tools.evaluation.comparison.ComparisonSettings`
     (every keyword but the world, set per episode), and that env's own world."""
     import gymnasium as gym
 
-    from ..experiments.comparison import ComparisonSettings
+    from ..evaluation.comparison import ComparisonSettings
 
     options = dict(config.eval_env_kwargs)
     own_world = options.pop("world", gym.spec(config.env_id).kwargs.get("world"))
@@ -106,11 +106,11 @@ def compare_model(model_path, name: str = "agent", world=OWN_WORLD, episodes: in
                   baselines=(), *, workers: int | None = None, progress: bool = True) -> list[dict]:
     """The model and the ``baselines`` (scripted policies' names, :class:`TrainedAgent` s) on the same
     ``episodes`` (world, seed) pairs, paired, in its run's evaluation env
-    (:func:`emmi_gym.tools.experiments.comparison.compare_on`): ``world`` a world, map set, folder or glob
+    (:func:`emmi_gym.tools.evaluation.comparison.compare_on`): ``world`` a world, map set, folder or glob
     (default: the evaluation env's own world), its maps or seeds taken as
-    :func:`~emmi_gym.tools.experiments.comparison.episodes_on` says. Rows carry ``name`` for the model, and
+    :func:`~emmi_gym.tools.evaluation.comparison.episodes_on` says. Rows carry ``name`` for the model, and
     each episode's ``trace`` (for the comparison at equal robot time)."""
-    from ..experiments.comparison import compare_on, episodes_on
+    from ..evaluation.comparison import compare_on, episodes_on
 
     settings, own_world = comparison_settings(RunFolder.config_of_model(model_path))
     pairs = episodes_on(own_world if world is OWN_WORLD else world, episodes, seed)
@@ -122,7 +122,7 @@ def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> li
     """``front.png`` (map quality against robot time, a point per policy) and, beside a baseline,
     ``maps.png``: the episode where the model's accuracy against the oracle map differs most from the
     first baseline's (among those where it went back, if any), both maps with where it went back."""
-    from ..experiments.comparison import play_on_world, plot_front, plot_pair, policy_name
+    from ..evaluation.comparison import play_on_world, plot_front, plot_pair, policy_name
 
     out = Path(out)
     plot_front(rows, out / "front.png")

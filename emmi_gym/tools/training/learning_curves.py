@@ -29,7 +29,7 @@ import numpy as np
 from ...formats.atomic_files import write_atomically
 from ...inputs.csv_files import CsvFileError, read_csv_file
 from ...inputs.user_paths import output_file
-from ..experiments.loop_order import LOOP_ORDER_KEY
+from ..evaluation.loop_order import LOOP_ORDER_KEY
 from ..policies import POLICY_NAMES
 from .run_folders import RunFolder
 

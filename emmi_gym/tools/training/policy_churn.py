@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ...inputs.validation import MAX_EPISODES
-from ..experiments.episodes import ModelActor, play_episodes
+from ..evaluation.episodes import ModelActor, play_episodes
 from .evaluate import EVALUATION_SEED, load_model
 from .run_folders import RunFolder
 from .train import make_agent_env
@@ -26,7 +26,7 @@ DEFAULT_FRACTIONS = (0.25, 0.5, 0.75)
 
 
 class _ActsWithTheFinalModel:
-    """An actor (:func:`~emmi_gym.tools.experiments.episodes.play_episode`) that acts with the final model and
+    """An actor (:func:`~emmi_gym.tools.evaluation.episodes.play_episode`) that acts with the final model and
     counts, for each other model, the decisions at which it would have taken the same action."""
 
     def __init__(self, final: ModelActor, others: list[ModelActor]):

@@ -1,6 +1,6 @@
 """The reward benchmark: for each reward variant, train an agent per seed, then evaluate every agent
 and the baselines (scripted policies, shipped agents) on the *same* held-out episodes under the *same*
-ground-truth metrics, final and at equal robot time (:mod:`emmi_gym.tools.experiments.robot_time`).
+ground-truth metrics, final and at equal robot time (:mod:`emmi_gym.tools.evaluation.robot_time`).
 
 Runs are independent jobs: by default they go to local worker processes; with a Ray address
 (or "local" for a fresh local Ray instance) they go to a Ray cluster instead. Ray is an
@@ -25,14 +25,13 @@ from ...concurrency.interrupts import Interrupted
 from ...concurrency.parallel import run_in_processes
 from ...concurrency.progress import progress_bar
 from ...concurrency.ray_cluster import connect_ray
-from ...formats.atomic_files import write_atomically, write_text_atomically
-from ..experiments.comparison import make_actor, policy_name
-from ..experiments.directions import better_side, format_number
-from ..experiments.episodes import info_options, nanmean, play_episodes
-from ..experiments.intervals import difference_interval, measure_interval
-from ..experiments.loop_order import LOOP_ORDER_KEY
-from ..experiments.report import write_csv
-from ..experiments.robot_time import TRACE, read_together, trace_rows, without_traces
+from ...formats.atomic_files import write_atomically, write_csv, write_text_atomically
+from ..evaluation.comparison import make_actor, policy_name
+from ..evaluation.directions import better_side, format_number
+from ..evaluation.episodes import info_options, nanmean, play_episodes
+from ..evaluation.intervals import difference_interval, measure_interval
+from ..evaluation.loop_order import LOOP_ORDER_KEY
+from ..evaluation.robot_time import TRACE, read_together, trace_rows, without_traces
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, evaluate_model
 from .run_folders import RunError, RunFolder, RunStart
@@ -281,7 +280,7 @@ def paired_with(rows: list[dict], baseline: str, *, equal_robot_time: bool = Fal
     """Each trained variant minus ``baseline`` on the same held-out episodes: each agent's mean of its paired
     differences (episode by episode) is one sample; mean [95% t-interval] over the agents. With
     ``equal_robot_time`` (rows with traces), each pair of episodes is read at the robot time the shorter took
-    (:func:`~emmi_gym.tools.experiments.robot_time.read_together`); ``sim_steps`` is then that time, the
+    (:func:`~emmi_gym.tools.evaluation.robot_time.read_together`); ``sim_steps`` is then that time, the
     agent's own, not a difference."""
     theirs = {row["episode_seed"]: row for row in rows if row["kind"] == "baseline" and row["variant"] == baseline}
 
@@ -420,7 +419,7 @@ def plot(results: list[dict], out: Path) -> dict[str, Path]:
 
 def write_benchmark(results: list[dict], out_dir, header: str) -> dict[str, Path]:
     """``benchmark_episodes.csv`` (every evaluation episode), ``benchmark_traces.csv`` (their ground-truth scores
-    after every decision, :mod:`~emmi_gym.tools.experiments.robot_time`), ``benchmark_summary.md`` and the plots."""
+    after every decision, :mod:`~emmi_gym.tools.evaluation.robot_time`), ``benchmark_summary.md`` and the plots."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"episodes": out / "benchmark_episodes.csv", "traces": out / "benchmark_traces.csv",

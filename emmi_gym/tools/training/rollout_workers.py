@@ -20,6 +20,12 @@ reward is bootstrapped with the value of its terminal observation, the buffer ge
 entries SB3 would have stored for the same actions, and the algorithm's own ``train()`` learns
 from it. Models of that class save and load as the algorithm itself.
 
+``collect_rollouts`` is the method SB3's developer guide names for how an algorithm gathers its
+samples (sb3-contrib's MaskablePPO and RecurrentPPO override it too), and the override uses SB3's
+public names only: a fragment carries the observations and episode starts its first step was
+played from (the workers hold the envs' state, so the learner keeps no copy), and ended episodes
+go to the model's public ``ep_info_buffer`` and ``ep_success_buffer`` (:func:`record_episodes`).
+
 With ``policy_lag=1`` the workers do not wait for the update: as soon as the learner has a rollout's
 fragments it sends the weights it holds and the workers play the next fragment with them while it
 updates, so the update no longer holds up the workers (Sample Factory's asynchronous PPO, Petrenko et
@@ -71,8 +77,12 @@ class Fragment:
     """``n_steps`` decisions of a worker's envs, arrays ``(n_steps, envs, ...)``: the observations after
     each step (``new_obs``), the sampled actions (before clipping), the values and log-probabilities of
     the acting forward pass, the masks it used (None without masking), rewards, ends and each step's
-    infos (a list per step of a dict per env)."""
+    infos (a list per step of a dict per env); and, arrays ``(envs, ...)``, the observations the first
+    step was played from (``first_obs``) and whether each env's episode began there (``first_starts``:
+    after a reset, or the previous fragment's last ``dones``)."""
 
+    first_obs: dict | np.ndarray
+    first_starts: np.ndarray
     new_obs: dict | np.ndarray
     actions: np.ndarray
     values: np.ndarray
@@ -113,7 +123,7 @@ class RolloutWorker:
         self.env = make_vec_env(env_fn, n_envs=len(ranks), seed=seed, start_index=ranks.start)
         self.env.seed(seed + ranks.start)  # make_vec_env seeds seed + index: env `rank` gets seed + rank
         self.generator_seed = int(np.random.SeedSequence([seed, ranks.start]).generate_state(1)[0])
-        self.policy, self.acting, self.obs = None, None, None
+        self.policy, self.acting, self.obs, self.episode_starts = None, None, None, None
 
     def spaces(self) -> tuple:
         return self.env.observation_space, self.env.action_space
@@ -124,6 +134,7 @@ class RolloutWorker:
         if seed is not None:
             self.env.seed(seed)
         self.obs = self.env.reset()
+        self.episode_starts = np.ones(self.env.num_envs, dtype=bool)
         beat()
         return self.obs
 
@@ -141,8 +152,11 @@ class RolloutWorker:
         """``n_steps`` decisions of every env with the policy's ``weights``, as SB3's ``collect_rollouts`` acts."""
         from sb3_contrib.common.maskable.utils import get_action_masks
 
+        if self.obs is None:
+            raise RuntimeError("the rollout worker's envs were not reset before its first fragment")
         self.policy.load_state_dict(weights)
         action_space, acting, n_envs = self.env.action_space, self.acting, self.env.num_envs
+        first_obs, first_starts = self.obs, self.episode_starts
         if acting.use_sde:
             self.policy.reset_noise(n_envs)
         steps = []
@@ -160,11 +174,13 @@ class RolloutWorker:
                 env_actions = self.policy.unscale_action(actions) if self.policy.squash_output \
                     else np.clip(actions, action_space.low, action_space.high)
             self.obs, rewards, dones, infos = self.env.step(env_actions)
+            self.episode_starts = dones
             beat()
             steps.append((self.obs, actions, values.numpy(), log_probs.numpy(), masks, rewards, dones, infos))
         new_obs, actions, values, log_probs, masks, rewards, dones, infos = zip(*steps, strict=False)
-        return Fragment(_stack_steps(new_obs), np.stack(actions), np.stack(values), np.stack(log_probs),
-                        np.stack(masks) if acting.masking else None, np.stack(rewards), np.stack(dones), list(infos))
+        return Fragment(first_obs, first_starts, _stack_steps(new_obs), np.stack(actions), np.stack(values),
+                        np.stack(log_probs), np.stack(masks) if acting.masking else None, np.stack(rewards),
+                        np.stack(dones), list(infos))
 
     def close(self) -> None:
         self.env.close()
@@ -193,6 +209,7 @@ class RolloutWorkers(VecEnv):
         self.worker_timeout = worker_timeout
         self._ahead_under_way = False  # the workers are playing the next fragments (policy_lag 1)
         self._ahead: list[Fragment] | None = None  # those fragments, gathered before another call
+        self._next_seeds: list[int | None] = [None] * n_envs  # the seeds of the next reset (seed())
         try:
             for rank in range(n_envs):
                 args = (f"rollout worker {rank}", RolloutWorker, env_fn, range(rank, rank + 1), seed)
@@ -227,9 +244,14 @@ class RolloutWorkers(VecEnv):
         ahead from the envs' earlier state are dropped."""
         self._gather_ahead()
         self._ahead = None
-        observations = self._each([(rank, "reset", seed) for rank, seed in enumerate(self._seeds)])
-        self._reset_seeds()
+        observations = self._each([(rank, "reset", seed) for rank, seed in enumerate(self._next_seeds)])
+        self._next_seeds = [None] * self.num_envs
         return _join_envs(observations, 0)
+
+    def seed(self, seed: int | None = None) -> list[int | None]:
+        """SB3's ``VecEnv.seed``: the envs' next reset seeds them ``seed + rank`` (a random ``seed`` if None)."""
+        self._next_seeds = list(super().seed(seed))
+        return self._next_seeds
 
     def play(self, policy, n_steps: int, acting: Acting) -> Fragment:
         """The fragments of ``n_steps`` decisions of every worker, joined along the envs in rank order:
@@ -252,14 +274,16 @@ class RolloutWorkers(VecEnv):
                 worker.submit("play", weights, n_steps)
             self._ahead_under_way = True
         join = lambda name: np.concatenate([getattr(f, name) for f in fragments], 1)  # noqa: E731
-        return Fragment(_join_envs([f.new_obs for f in fragments], 1), join("actions"), join("values"),
+        return Fragment(_join_envs([f.first_obs for f in fragments], 0),
+                        np.concatenate([f.first_starts for f in fragments]),
+                        _join_envs([f.new_obs for f in fragments], 1), join("actions"), join("values"),
                         join("log_probs"), join("action_masks") if acting.masking else None, join("rewards"),
                         join("dones"), [sum((f.infos[step] for f in fragments), []) for step in range(n_steps)])
 
     def _by_worker(self, kind: str, name, args: tuple, indices) -> list:
         """``kind`` (``get_attr``, ``set_attr``, ``env_method``, ``env_is_wrapped``) of the envs ``indices``."""
-        return [result[0] for result in self._each([(rank, "call", kind, name, args, [0])
-                                                    for rank in self._get_indices(indices)])]
+        ranks = range(self.num_envs) if indices is None else [indices] if isinstance(indices, int) else indices
+        return [result[0] for result in self._each([(rank, "call", kind, name, args, [0]) for rank in ranks])]
 
     def get_attr(self, attr_name: str, indices=None) -> list:
         return self._by_worker("get_attr", attr_name, (), indices)
@@ -306,12 +330,12 @@ class _FragmentCollection:
         fragments instead of played here: the same callbacks, bootstrap and buffer entries."""
         if not isinstance(env, RolloutWorkers):
             raise TypeError(f"{type(self).__name__} collects from RolloutWorkers, not {type(env).__name__}")
-        assert self._last_obs is not None, "No previous observation was provided"
         masking = use_masking and is_masked(self)
         self.policy.set_training_mode(False)
         rollout_buffer.reset()
         callback.on_rollout_start()
         fragment = env.play(self.policy, n_rollout_steps, acting_of(self, masking))
+        last_obs, last_episode_starts = fragment.first_obs, fragment.first_starts
         masks = {}
         for n_steps in range(n_rollout_steps):
             new_obs, rewards, dones, infos = (_step_of(fragment.new_obs, n_steps), fragment.rewards[n_steps].copy(),
@@ -324,7 +348,7 @@ class _FragmentCollection:
             callback.update_locals(locals())
             if not callback.on_step():
                 return False
-            self._update_info_buffer(infos, dones)
+            record_episodes(self, infos, dones)
             if isinstance(self.action_space, spaces.Discrete):
                 actions = actions.reshape(-1, 1)
             for idx, done in enumerate(dones):  # a truncated episode: bootstrap with V(terminal observation)
@@ -334,15 +358,25 @@ class _FragmentCollection:
                     with th.no_grad():
                         terminal_value = self.policy.predict_values(terminal_obs)[0]
                     rewards[idx] += self.gamma * terminal_value
-            rollout_buffer.add(self._last_obs, actions, rewards, self._last_episode_starts, values, log_probs, **masks)
-            self._last_obs = new_obs
-            self._last_episode_starts = dones
+            rollout_buffer.add(last_obs, actions, rewards, last_episode_starts, values, log_probs, **masks)
+            last_obs, last_episode_starts = new_obs, dones
         with th.no_grad():
             values = self.policy.predict_values(obs_as_tensor(new_obs, self.device))
         rollout_buffer.compute_returns_and_advantage(last_values=values, dones=dones)
         callback.update_locals(locals())
         callback.on_rollout_end()
         return True
+
+
+def record_episodes(model, infos: list, dones: np.ndarray) -> None:
+    """What SB3's own loop keeps of a step's ``infos`` for its logs, through the model's public buffers: each
+    ended episode's ``Monitor`` record (``info["episode"]``) in ``ep_info_buffer``, and the ``is_success`` of
+    each env whose episode ended in ``ep_success_buffer``."""
+    for info, done in zip(infos, dones, strict=True):
+        if info.get("episode") is not None:
+            model.ep_info_buffer.extend([info["episode"]])
+        if info.get("is_success") is not None and done:
+            model.ep_success_buffer.append(info["is_success"])
 
 
 def is_masked(model) -> bool:

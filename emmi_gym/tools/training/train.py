@@ -31,7 +31,7 @@ from torch.optim.optimizer import register_optimizer_step_post_hook, register_op
 from ...concurrency.interrupts import RunStopped
 from ...concurrency.parallel import ActorFailed, leave_terminal_signals, one_kernel_thread
 from ...formats.atomic_files import write_atomically
-from ..experiments.loop_order import LoopOrderInfo
+from ..evaluation.loop_order import LoopOrderInfo
 from .callbacks import (
     DecisionProgress,
     NonFiniteError,
@@ -277,9 +277,14 @@ class AtomicCheckpointCallback(OnRunSchedule, CheckpointCallback):
         check_weights(self.model, "before a checkpoint")
         with interrupts_deferred():
             if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
-                write_atomically(Path(self._checkpoint_path("replay_buffer_", extension="pkl")),
-                                 self.model.save_replay_buffer)
-            write_atomically(Path(self._checkpoint_path(extension="zip")), self._save)
+                write_atomically(self.checkpoint_path("replay_buffer_", "pkl"), self.model.save_replay_buffer)
+            write_atomically(self.checkpoint_path("", "zip"), self._save)
+
+    def checkpoint_path(self, kind: str, extension: str) -> Path:
+        """Where SB3's ``CheckpointCallback`` names a checkpoint of ``kind`` ("" for the model,
+        ``"replay_buffer_"``) at the decisions counted now: ``<save_path>/<name_prefix>_<kind><N>_steps.<extension>``,
+        from its public settings."""
+        return Path(self.save_path, f"{self.name_prefix}_{kind}{self.num_timesteps}_steps.{extension}")
 
     def _save(self, path: Path) -> None:
         self.model.save(path)

@@ -20,8 +20,8 @@ from matplotlib.image import imread
 
 from emmi_gym.tools.cli import main
 from emmi_gym.tools.commands import ab as ab_command
+from emmi_gym.tools.evaluation.intervals import mean_interval
 from emmi_gym.tools.experiments import ABSettings, run_arm
-from emmi_gym.tools.experiments.intervals import mean_interval
 from emmi_gym.tools.experiments.report import SUMMARY_COLUMNS
 
 SEEDS = 8
@@ -148,7 +148,7 @@ def test_bad_input_is_a_clear_error(argv, message, capsys):
 
 
 def test_intervals_stay_within_what_a_measure_can_be():
-    from emmi_gym.tools.experiments.intervals import difference_interval, measure_interval
+    from emmi_gym.tools.evaluation.intervals import difference_interval, measure_interval
 
     share, low, high, n = measure_interval([1.0, 1.0, 0.0], "completed")
     assert (share, n) == (pytest.approx(2 / 3), 3) and 0.0 <= low < share < high <= 1.0

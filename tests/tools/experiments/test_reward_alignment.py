@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from emmi_gym.tools.experiments.comparison import ComparisonSettings, compare_on
+from emmi_gym.tools.evaluation.comparison import ComparisonSettings, compare_on
 from emmi_gym.tools.experiments.reward_alignment import (
     Discount,
     alignment,

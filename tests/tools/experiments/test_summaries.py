@@ -3,8 +3,8 @@ pairs on that side ("A better"), never merely "A higher"; numbers are written al
 
 import math
 
-from emmi_gym.tools.experiments.comparison import markdown_table
-from emmi_gym.tools.experiments.directions import BETTER, HIGHER, better_side
+from emmi_gym.tools.evaluation.comparison import markdown_table
+from emmi_gym.tools.evaluation.directions import BETTER, HIGHER, better_side
 from emmi_gym.tools.experiments.report import SUMMARY_COLUMNS, markdown_summary
 from emmi_gym.tools.training.evaluate import format_table
 from emmi_gym.tools.training.reward_benchmark import markdown

@@ -7,7 +7,7 @@ import pytest
 
 from emmi_gym import pretrained
 from emmi_gym.tools.cli import main
-from emmi_gym.tools.experiments.comparison import ComparisonSettings, play_on_world
+from emmi_gym.tools.evaluation.comparison import ComparisonSettings, play_on_world
 from emmi_gym.tools.training.config import parse_agent_config
 from emmi_gym.tools.training.run_folders import RunFolder
 from emmi_gym.tools.training.train import train

@@ -416,7 +416,7 @@ def test_a_billion_episodes_is_refused_at_parse_time(capsys, argv):
 
 
 def test_episodes_are_made_when_asked_for():
-    from emmi_gym.tools.experiments.comparison import episodes_on
+    from emmi_gym.tools.evaluation.comparison import episodes_on
 
     tracemalloc.start()
     episodes = episodes_on(None, 10**9, 7)

@@ -1,8 +1,14 @@
 """Rollout workers: the buffer the learner fills from their fragments is the one SB3 collects for the same
 actions; processes, a local Ray instance and a two-node Ray cluster give the same rollouts for the same
-seeds; training with them saves, resumes, starts from another model and stops on Ctrl-C as before."""
+seeds; training with them saves, resumes, starts from another model and stops on Ctrl-C as before. They
+stand on SB3's public names only, which a test here checks are still there."""
 
+import ast
 import copy
+import inspect
+import textwrap
+from collections import deque
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,7 +21,7 @@ from emmi_gym.concurrency.parallel import ActorFailed
 from emmi_gym.concurrency.ray_cluster import LOCAL_SYSTEM_CONFIG
 from emmi_gym.tools.training.config import AgentConfigError, parse_agent_config
 from emmi_gym.tools.training.evaluate import evaluate_model
-from emmi_gym.tools.training.rollout_workers import RolloutWorkers
+from emmi_gym.tools.training.rollout_workers import RolloutWorkers, record_episodes
 from emmi_gym.tools.training.run_folders import RunFolder
 from emmi_gym.tools.training.semi_markov import SemiMarkovDiscounts
 from emmi_gym.tools.training.train import make_vec_env, model_of, train
@@ -52,6 +58,8 @@ class Buffers(BaseCallback):
             value = getattr(buffer, name, None)
             if value is not None:
                 entries[name] = copy.deepcopy(value)
+        # the episodes SB3's logs read (return and length; "t" is the wall-clock time)
+        entries["episodes"] = np.array([(info["r"], info["l"]) for info in self.model.ep_info_buffer])
         self.rollouts.append(entries)
 
     def _on_step(self) -> bool:
@@ -114,7 +122,7 @@ def test_the_learner_fills_the_buffer_sb3_collects_for_the_same_actions(base):
     assert ends >= 2  # episodes ended and were reset within the rollouts (a truncation bootstrapped)
     for ours, sb3 in zip(from_workers, from_sb3, strict=True):
         assert set(ours) == set(sb3)
-        for name in ("observations", "actions", "episode_starts", "action_masks"):
+        for name in ("observations", "actions", "episode_starts", "action_masks", "episodes"):
             if name in ours:
                 np.testing.assert_array_equal(_arrays(ours[name]), _arrays(sb3[name]), err_msg=name)
         for name in ("rewards", "values", "log_probs", "advantages", "returns", "discounts"):
@@ -262,3 +270,59 @@ def test_rollout_workers_for_an_off_policy_algorithm_are_a_clear_error():
                             "vec_env": "workers"},
                            source="agent.yaml")
     assert error.value.field == "vec_env"
+
+
+def parameters(function) -> list[str]:
+    return list(inspect.signature(function).parameters)
+
+
+def test_the_names_the_workers_use_of_sb3_are_still_there():
+    """What the workers' ``collect_rollouts`` calls and reads of SB3 and sb3-contrib, all public: a release that
+    renames or reshapes one fails here, in the quick lane, not in the middle of a training run."""
+    from sb3_contrib import MaskablePPO
+    from sb3_contrib.common.maskable.buffers import MaskableDictRolloutBuffer, MaskableRolloutBuffer
+    from sb3_contrib.common.maskable.utils import get_action_masks
+    from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.buffers import DictRolloutBuffer, RolloutBuffer
+    from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.vec_env import VecEnv
+
+    overridden = ["self", "env", "callback", "rollout_buffer", "n_rollout_steps"]
+    assert parameters(OnPolicyAlgorithm.collect_rollouts) == overridden
+    assert parameters(MaskablePPO.collect_rollouts) == [*overridden, "use_masking"]
+    for buffer in (RolloutBuffer, DictRolloutBuffer):
+        assert parameters(buffer.add) == ["self", "obs", "action", "reward", "episode_start", "value", "log_prob"]
+        assert parameters(buffer.compute_returns_and_advantage) == ["self", "last_values", "dones"]
+    for buffer in (MaskableRolloutBuffer, MaskableDictRolloutBuffer):
+        assert "action_masks" in parameters(buffer.add)
+    assert parameters(get_action_masks) == ["env"]
+    assert parameters(BaseCallback.update_locals) == ["self", "locals_"]
+    assert all(callable(getattr(BaseCallback, name)) for name in ("on_rollout_start", "on_step", "on_rollout_end"))
+    assert all(callable(getattr(ActorCriticPolicy, name)) for name in
+               ("forward", "set_training_mode", "reset_noise", "obs_to_tensor", "predict_values", "unscale_action"))
+    assert isinstance(ActorCriticPolicy.squash_output, property)
+    assert parameters(VecEnv.seed) == ["self", "seed"]
+    assigned = {node.attr for cls in (BaseAlgorithm, OnPolicyAlgorithm) for node in ast.walk(ast.parse(
+        textwrap.dedent(inspect.getsource(cls)))) if isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store)
+        and isinstance(node.value, ast.Name) and node.value.id == "self"}
+    read = {"policy", "num_timesteps", "gamma", "use_sde", "sde_sample_freq", "action_space", "device",
+            "ep_info_buffer", "ep_success_buffer"}
+    assert read <= assigned, sorted(read - assigned)
+
+
+def test_ended_episodes_go_to_the_buffers_sb3_keeps_them_in():
+    """:func:`record_episodes` keeps what SB3's own loop keeps of a step's infos for its logs (SB3 does it in a
+    private method, called here to compare): each ``Monitor`` record, and ``is_success`` at an episode's end."""
+    from stable_baselines3.common.base_class import BaseAlgorithm
+
+    steps = [([{"episode": {"r": 1.5, "l": 3, "t": 0.1}, "is_success": True}, {"is_success": False}], [True, False]),
+             ([{}, {"episode": {"r": -2.0, "l": 4, "t": 0.2}, "is_success": False}], [False, True]),
+             ([{"is_success": True}, {}], [False, False])]
+    kept = []
+    for record in (record_episodes, BaseAlgorithm._update_info_buffer):
+        model = SimpleNamespace(ep_info_buffer=deque(maxlen=100), ep_success_buffer=deque(maxlen=100))
+        for infos, dones in steps:
+            record(model, infos, np.array(dones))
+        kept.append((list(model.ep_info_buffer), list(model.ep_success_buffer)))
+    assert kept[0] == kept[1] == ([steps[0][0][0]["episode"], steps[1][0][1]["episode"]], [True, False])

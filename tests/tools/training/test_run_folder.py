@@ -3,6 +3,7 @@ use is refused, overwriting removes the run's files and nothing else, a resumed 
 and the run goes on from its newest checkpoint that loads, a damaged one skipped."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 from test_training import config_dict
@@ -177,3 +178,15 @@ def test_a_run_whose_only_checkpoint_is_damaged_is_named_damaged_not_without_che
                                                 rf"model file\(s\) are all damaged, the last: "
                                                 rf"{folder.checkpoint_path(16)}: expected a Stable-Baselines3 model"):
         folder.whole_checkpoints()
+
+
+@pytest.mark.parametrize("kind, extension", [("", "zip"), ("replay_buffer_", "pkl")])
+def test_checkpoints_are_named_as_sb3_names_them(tmp_path, kind, extension):
+    """The run folder finds checkpoints by SB3's names; the callback that writes them builds those names from
+    SB3's public settings (compared here with SB3's own private helper)."""
+    from emmi_gym.tools.training.train import AtomicCheckpointCallback
+
+    callback = AtomicCheckpointCallback(save_freq=4, save_path=str(tmp_path), name_prefix="model")
+    callback.num_timesteps = 96
+    assert callback.checkpoint_path(kind, extension) == Path(callback._checkpoint_path(kind, extension))
+    assert callback.checkpoint_path(kind, extension).name == f"model_{kind}96_steps.{extension}"

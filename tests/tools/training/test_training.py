@@ -10,8 +10,8 @@ import yaml
 from helpers import start_as_a_terminal_would
 
 from emmi_gym.tools.cli import main
-from emmi_gym.tools.experiments.episodes import GROUND_TRUTH
-from emmi_gym.tools.experiments.loop_order import LOOP_ORDER_KEY
+from emmi_gym.tools.evaluation.episodes import GROUND_TRUTH
+from emmi_gym.tools.evaluation.loop_order import LOOP_ORDER_KEY
 from emmi_gym.tools.training.config import AgentConfigError, load_agent_config, parse_agent_config
 from emmi_gym.tools.training.evaluate import evaluate_model
 from emmi_gym.tools.training.reward_benchmark import TABLE_COLUMNS, run_benchmark, write_benchmark
@@ -623,7 +623,7 @@ def test_benchmark_summary_pairs_each_agent_with_the_baselines_on_the_same_episo
 def test_benchmark_pairs_the_agents_with_the_baselines_at_equal_robot_time():
     """Each pair of episodes read at the robot time the shorter took: the agent's episodes end at 500 steps, the
     baseline's at 1000, so the baseline is read halfway through its last decision."""
-    from emmi_gym.tools.experiments.robot_time import TRACE
+    from emmi_gym.tools.evaluation.robot_time import TRACE
     from emmi_gym.tools.training.reward_benchmark import markdown, paired_with
 
     def row(kind, variant, seed, episode, end, accuracy, ate):
@@ -799,7 +799,7 @@ def test_loop_order_counts_only_the_path_after_the_decision_point():
     read from the episode's own path."""
     import gymnasium as gym
 
-    from emmi_gym.tools.experiments.ab import closed_loop_first, new_area_now
+    from emmi_gym.tools.evaluation.loop_order import closed_loop_first, new_area_now
 
     env = gym.make("emmi_gym/LoopCorridor-v1", particles=3)
     env.reset(seed=0)

@@ -18,7 +18,7 @@ from helpers import ROOT
 
 import emmi_gym  # noqa: F401
 from emmi_gym.tools.cli import main
-from emmi_gym.tools.experiments.loop_order import LOOP_ORDER_KEY
+from emmi_gym.tools.evaluation.loop_order import LOOP_ORDER_KEY
 from emmi_gym.tools.experiments.sweep import SWEEP_MEASURES, SweepFileError, ab_settings, read_sweep
 from emmi_gym.tools.policies import make_policy
 from emmi_gym.tools.training.train import make_agent_env

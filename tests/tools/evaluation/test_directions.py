@@ -1,11 +1,11 @@
-"""Which side of each measure is better (emmi_gym.tools.experiments.directions), as the paper says, and how its numbers
+"""Which side of each measure is better (emmi_gym.tools.evaluation.directions), as the paper says, and how its numbers
 are written; the tables that use it: tools/experiments/test_summaries.py."""
 
 import math
 
 import pytest
 
-from emmi_gym.tools.experiments.directions import BETTER, HIGHER, LOWER, Tally, count_better, format_number
+from emmi_gym.tools.evaluation.directions import BETTER, HIGHER, LOWER, Tally, count_better, format_number
 
 
 @pytest.mark.parametrize(("column", "side"), [("oracle_accuracy", HIGHER), ("ate", LOWER), ("emmi_change", HIGHER),

@@ -3,9 +3,9 @@ same world and seed read at the robot time the shorter took."""
 
 import pytest
 
-from emmi_gym.tools.experiments.comparison import ComparisonSettings, make_actor, markdown_table, play_on_world
-from emmi_gym.tools.experiments.episodes import info_options, play_episode
-from emmi_gym.tools.experiments.robot_time import (
+from emmi_gym.tools.evaluation.comparison import ComparisonSettings, make_actor, markdown_table, play_on_world
+from emmi_gym.tools.evaluation.episodes import info_options, play_episode
+from emmi_gym.tools.evaluation.robot_time import (
     TRACE,
     TRACED,
     at_equal_robot_time,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from emmi_gym.tools.experiments.comparison import (
+from emmi_gym.tools.evaluation.comparison import (
     ComparisonSettings,
     compare,
     markdown_table,
@@ -41,7 +41,7 @@ def test_policies_are_paired_by_world_and_seed(tmp_path):
 
 
 def test_worlds_of_takes_a_sets_first_maps_and_a_world_as_it_is():
-    from emmi_gym.tools.experiments.comparison import worlds_of
+    from emmi_gym.tools.evaluation.comparison import worlds_of
 
     plans = [str(p) for p in map_set_files("dungeon_maps/test")[:2]]
     assert worlds_of(["dungeon_maps/test", "loop_corridor"], 2) == [*plans, "loop_corridor"]
