@@ -31,6 +31,7 @@ from dataclasses import asdict
 from functools import partial
 from pathlib import Path
 
+import _arguments as arguments
 import numpy as np
 from _data import require_files
 from _options import json_object, rbpf_config
@@ -39,7 +40,6 @@ from emmi_gym.concurrency.parallel import run_in_processes
 from emmi_gym.env.seeds import HELD_OUT_SEED
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.scoring.calibration import PoseCheck, honest_cloud_summary
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.calibration import (
     FAMILIES,
     CalibrationRecord,
