@@ -164,7 +164,7 @@ def main() -> None:
     drawing.add_argument("--out", type=Path, default=Path("calibration.png"))
     honest = sub.add_parser("honest", help="what honest clouds of a few particles score")
     honest.add_argument("--particles", nargs="+", type=arguments.integer(3), default=[15, 30, 60])
-    honest.add_argument("--log-weight-sd", nargs="+", type=arguments.number(0.0), default=[0.0, 1.0, 2.0])
+    honest.add_argument("--log-weight-sd", nargs="+", type=arguments.non_negative, default=[0.0, 1.0, 2.0])
     honest.add_argument("--moments", type=arguments.integer(1), default=4000)
     args = parser.parse_args()
     if args.mode == "honest":

@@ -167,3 +167,18 @@ def test_ros_bags_of_the_log_decode_alike_and_replay_as_the_log_does(radish, tmp
     assert {r["updates"] for r in results} == {130} and all(len(r["emmi"]) == 130 for r in results)
     assert float(row[5]) < 0.1  # bits per cell: the bag's EMMI curve is the log's
     assert sorted(p.name for p in (tmp_path / "intel").iterdir()) == ["bag-mcap", "bag-sqlite3", "bag.bag"]
+
+
+def test_calibration_of_honest_clouds_comes_nearer_its_ideal_with_more_particles_and_even_weights():
+    done = run_script(MEASUREMENTS / "calibration.py", "honest", "--particles", "3", "30", "--log-weight-sd", "0", "2",
+                      "--moments", "300")
+    assert done.code == 0, done.err
+    rows = {(int(row[0]), float(row[1])): row[2:] for row in markdown_rows(done.out)}
+    assert list(rows) == [(3, 0.0), (3, 2.0), (30, 0.0), (30, 2.0)]
+    assert [float(rows[(m, 0.0)][0]) for m in (3, 30)] == [3.0, 30.0]  # equal weights: every particle counts
+    assert all(float(rows[(m, 2.0)][0]) < m for m in (3, 30))
+    nees = {key: float(cells[1]) for key, cells in rows.items()}
+    assert nees[(30, 0.0)] < nees[(3, 0.0)] and nees[(30, 0.0)] < nees[(30, 2.0)]  # nearer 2, an honest belief's
+    for value in ("-1", "inf"):
+        bad = run_script(MEASUREMENTS / "calibration.py", "honest", "--log-weight-sd", value)
+        assert bad.code == 2 and f"--log-weight-sd: expected a finite number >= 0, got '{value}'" in bad.err
