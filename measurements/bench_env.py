@@ -44,6 +44,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+import _arguments as arguments
 import gymnasium as gym
 import numpy as np
 from _timing import timed
@@ -55,7 +56,6 @@ from emmi_gym.env.observation import OBSERVATION_TYPES
 from emmi_gym.navigation import executor
 from emmi_gym.scoring.oracle import OracleMap
 from emmi_gym.slam import RBPF
-from emmi_gym.tools.commands import arguments
 from emmi_gym.world import Simulator
 
 gym.register_envs(emmi_gym)

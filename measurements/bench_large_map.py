@@ -29,6 +29,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import _arguments as arguments
 import numpy as np
 from _data import require_files
 from _options import rbpf_config
@@ -38,7 +39,6 @@ from emmi_gym.formats import carmen
 from emmi_gym.geometry.grid import GridGeometry
 from emmi_gym.scoring.scores import absolute_trajectory_error
 from emmi_gym.slam import RBPF, RBPFConfig
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.replay import laser_stream
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world, write_carmen
 
@@ -109,6 +109,9 @@ def main() -> None:
     rows, ate, phases_of_resamplings = run(rec, LASER.angles, config, geometry, seed=args.filter_seeds[0])
     wall = time.perf_counter() - t0
     timed = rows[10:]
+    if not timed:
+        raise SystemExit(f"the drive gave {len(rows)} filter updates, all among the first 10, which are not timed: "
+                         "drive farther (--metres) or update more often (--slam '{\"linear_update\": 0.1}')")
     phases = {k: float(np.median([r.phase_ms[k] for r in timed])) for k in timed[0].phase_ms}
     resamplings = [laps["total"] for laps in phases_of_resamplings]
     longest = max(phases_of_resamplings, key=lambda laps: laps["total"], default=None)

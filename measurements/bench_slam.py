@@ -16,11 +16,11 @@ from __future__ import annotations
 import argparse
 import time
 
+import _arguments as arguments
 import numpy as np
 
 from emmi_gym.geometry.grid import GridGeometry
 from emmi_gym.slam import RBPF, RBPFConfig
-from emmi_gym.tools.commands import arguments
 from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world
 
 

@@ -56,12 +56,12 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
+import _arguments as arguments
 import numpy as np
 from _timing import call_seconds, inside, timed
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from emmi_gym.concurrency.parallel import ProcessActor
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.training import callbacks
 from emmi_gym.tools.training.config import algorithm_class, load_agent_config, rollout_workers
 from emmi_gym.tools.training.rollout_workers import RolloutWorker, RolloutWorkers, acting_of, is_masked

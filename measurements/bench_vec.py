@@ -19,12 +19,12 @@ import os
 import time
 from functools import partial
 
+import _arguments as arguments
 import gymnasium as gym
 import numpy as np
 
 import emmi_gym
 from emmi_gym.concurrency.parallel import one_kernel_thread
-from emmi_gym.tools.commands import arguments
 
 gym.register_envs(emmi_gym)
 

@@ -17,14 +17,12 @@ import math
 from importlib import resources
 from pathlib import Path
 
+import _arguments as arguments
 import numpy as np
 import pymunk
 from _timing import median_seconds
 
-from emmi_gym.tools.commands import arguments
-from emmi_gym.world import GeneratorConfig, generate_world, rasterise
-from emmi_gym.world.loader import load_world
-from emmi_gym.world.simulator import Simulator
+from emmi_gym.world import GeneratorConfig, Simulator, generate_world, load_world, rasterise
 
 PLAN = Path(str(resources.files("emmi_gym.worlds_data"))) / "dungeon_maps" / "test" / "img_10011.png"
 

@@ -14,9 +14,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import _arguments as arguments
 from evaluations_paired import pooled_episodes
 
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.attribution import markdown, policy_name
 from emmi_gym.tools.experiments.report import read_csv
 

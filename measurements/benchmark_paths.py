@@ -21,7 +21,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from emmi_gym.tools.commands import arguments
+import _arguments as arguments
+
 from emmi_gym.tools.evaluation.comparison import play_on_world, plot_pair
 from emmi_gym.tools.evaluation.loop_order import LOOP_ORDER_KEY
 from emmi_gym.tools.experiments.report import read_csv

@@ -31,6 +31,7 @@ from dataclasses import asdict
 from functools import partial
 from pathlib import Path
 
+import _arguments as arguments
 import numpy as np
 from _data import require_files
 from _options import json_object, rbpf_config
@@ -39,7 +40,6 @@ from emmi_gym.concurrency.parallel import run_in_processes
 from emmi_gym.env.seeds import HELD_OUT_SEED
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.scoring.calibration import PoseCheck, honest_cloud_summary
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.calibration import (
     FAMILIES,
     CalibrationRecord,
@@ -164,7 +164,7 @@ def main() -> None:
     drawing.add_argument("--out", type=Path, default=Path("calibration.png"))
     honest = sub.add_parser("honest", help="what honest clouds of a few particles score")
     honest.add_argument("--particles", nargs="+", type=arguments.integer(3), default=[15, 30, 60])
-    honest.add_argument("--log-weight-sd", nargs="+", type=arguments.number(0.0), default=[0.0, 1.0, 2.0])
+    honest.add_argument("--log-weight-sd", nargs="+", type=arguments.non_negative, default=[0.0, 1.0, 2.0])
     honest.add_argument("--moments", type=arguments.integer(1), default=4000)
     args = parser.parse_args()
     if args.mode == "honest":

@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import argparse
 
+import _arguments as arguments
 import gymnasium as gym
 import numpy as np
 
 import emmi_gym  # noqa: F401
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.ab import loop_ate
 
 

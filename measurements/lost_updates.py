@@ -25,7 +25,8 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from emmi_gym.tools.commands import arguments
+import _arguments as arguments
+
 from emmi_gym.tools.training.run_folders.model_files import saved_data
 
 

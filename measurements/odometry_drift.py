@@ -12,14 +12,11 @@ from __future__ import annotations
 
 import argparse
 
+import _arguments as arguments
 import numpy as np
 
-from emmi_gym.tools.commands import arguments
-from emmi_gym.world.laser import LaserConfig
-from emmi_gym.world.loader import load_world
+from emmi_gym.world import LaserConfig, Simulator, drive_route, load_world
 from emmi_gym.world.presets import ODOMETRY_PRESETS, odometry_config
-from emmi_gym.world.recording import drive_route
-from emmi_gym.world.simulator import Simulator
 
 DISTANCES = (74.0, 100.0)
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from emmi_gym.tools.commands import arguments
+import _arguments as arguments
+
 from emmi_gym.tools.training.evaluate import EVALUATION_SEED
 from emmi_gym.tools.training.policy_churn import agreement_with_final, checkpoints_to_compare
 

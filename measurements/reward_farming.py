@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import argparse
 
+import _arguments as arguments
 import gymnasium as gym
 import numpy as np
 
 import emmi_gym  # noqa: F401 (registers the ids)
-from emmi_gym.env import REWARDS
-from emmi_gym.env.registration import ENV_IDS
-from emmi_gym.tools.commands import arguments
+from emmi_gym.env import ENV_IDS, REWARDS
 from emmi_gym.tools.policies import make_policy
 
 HARD = {k: v for k, v in ENV_IDS["ExplorePlans-v1"].items() if k not in ("action_mode", "max_decisions")}

@@ -37,13 +37,13 @@ import argparse
 import json
 from pathlib import Path
 
+import _arguments as arguments
 import gymnasium as gym
 from _options import checked, json_object
 
 from emmi_gym.env import REWARDS, EnvConfig
 from emmi_gym.env.reward_registry import privileged_rewards
 from emmi_gym.inputs.validation import build
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.evaluation.comparison import ComparisonSettings, compare_on, policy_name, worlds_of
 from emmi_gym.tools.experiments.reward_alignment import (
     QUALITIES,

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import argparse
 
+import _arguments as arguments
 import numpy as np
 from reward_farming import waypoint_steps
 
 import emmi_gym  # noqa: F401 (registers the ids)
 from emmi_gym.env import REWARDS
-from emmi_gym.tools.commands import arguments
 
 
 def main() -> None:

@@ -1,13 +1,14 @@
 """The replay of ROS bags against the CARMEN logs they were made from: the same ATE, the same EMMI curve.
 
     python measurements/ros_bags.py [--data ../shared/datasets/radish-noisy] [--logs intel aces freiburg-079]
-        [--log-seed 0] [--filter-seeds 0 1 2] [--bag-seeds 0] [--out ros_bags] [--jobs 1]
+        [--log-seed 0] [--filter-seeds 0 1 2] [--bag-seeds 0] [--particles 15] [--out ros_bags] [--jobs 1]
 
 Converts each ``radish-noisy`` log (``NAME-seedN.log.gz``) with the ``rosbags`` writer
 (:func:`emmi_gym.formats.ros_writers.write_log_bag`) to a ROS 1 bag and to ROS 2 bags of the sqlite3 and
 MCAP storages (``/scan``, ``/odom``, ``/tf``, ``/tf_static``, ``/truth``), then replays the log and each
-bag as ``emmi-gym replay --preset radish-noisy --resolution 0.05 --every-scan`` does (15 particles; the
-log with ``--max-range 30``, the bags with their ``range_max`` of 30 m and ``--truth /truth``). The log
+bag as ``emmi-gym replay --preset radish-noisy --resolution 0.05 --every-scan`` does (``--particles``, 15 by
+default; the log with ``--max-range 30``, the bags with their ``range_max`` of 30 m and ``--truth /truth``;
+``--jobs`` replays at a time, 1: in this process). The log
 replays under each of ``--filter-seeds`` (the run-to-run spread), every bag under ``--bag-seeds``, and
 the MCAP bag under all the filter seeds. It prints per log the final ATE of every run, whether the three
 bags decode to the same scans and poses, and the EMMI curves' largest difference from the log's at the
@@ -24,6 +25,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import _arguments as arguments
 import numpy as np
 from _data import require_files
 
@@ -31,7 +33,6 @@ from emmi_gym.formats.carmen import LaserRecord, read_log
 from emmi_gym.formats.ros_bags import BagTopics, read_bag
 from emmi_gym.formats.ros_writers import STORAGES, write_log_bag
 from emmi_gym.slam import RBPFConfig
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.replay import replay
 
 LOGS = ("intel", "aces", "csail", "freiburg-079")
@@ -62,8 +63,8 @@ def same_inputs(bags: dict[str, Path]) -> bool:
         for other in logs[1:])
 
 
-def run_one(source: str, path: str, seed: int) -> dict:
-    config = RBPFConfig.preset("radish-noisy", particles=15, resolution=0.05)
+def run_one(source: str, path: str, seed: int, particles: int = 15) -> dict:
+    config = RBPFConfig.preset("radish-noisy", particles=particles, resolution=0.05)
     started = time.perf_counter()
     if source == "carmen":
         result = replay(read_log(path), config, max_range=MAX_RANGE, seed=seed, every_scan=True)
@@ -82,8 +83,9 @@ def main() -> None:
     parser.add_argument("--filter-seeds", nargs="+", type=arguments.SEED, default=[0, 1, 2])
     parser.add_argument("--bag-seeds", nargs="+", type=arguments.SEED, default=[0],
                         help="the filter seeds every bag format replays under")
+    parser.add_argument("--particles", type=arguments.integer(1), default=15, help="the filter's particles")
     parser.add_argument("--out", default="ros_bags")
-    parser.add_argument("--jobs", type=arguments.integer(1), default=1)
+    parser.add_argument("--jobs", type=arguments.integer(1), default=1, help="replays at a time (1: in this process)")
     args = parser.parse_args()
     data, out = Path(args.data), Path(args.out)
     names = {name: f"{name}-seed{args.log_seed}.log.gz" for name in args.logs}
@@ -95,8 +97,12 @@ def main() -> None:
         runs += [(name, "carmen", str(data / file), seed) for seed in args.filter_seeds]
         runs += [(name, storage, str(bags[storage]), seed) for storage in STORAGES for seed in args.bag_seeds]
         runs += [(name, "mcap", str(bags["mcap"]), seed) for seed in args.filter_seeds if seed not in args.bag_seeds]
-    with ProcessPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(run_one, *zip(*[run[1:] for run in runs], strict=True)))
+    jobs = [(*run[1:], args.particles) for run in runs]
+    if args.jobs == 1:
+        results = [run_one(*job) for job in jobs]
+    else:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            results = list(pool.map(run_one, *zip(*jobs, strict=True)))
     for run, result in zip(runs, results, strict=True):
         result["log"] = run[0]
     print("| log | CARMEN ATE (m), filter seeds | ROS 1 / sqlite3 / MCAP ATE (m), seed "

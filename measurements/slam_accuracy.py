@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import argparse
 
+import _arguments as arguments
 import numpy as np
 from _options import checked, preset_or_fields, rbpf_config
 
 from emmi_gym.geometry.grid import GridGeometry
 from emmi_gym.scoring.scores import absolute_trajectory_error, loop_closure_update, map_accuracy, trajectory_alignment
 from emmi_gym.slam import RBPF
-from emmi_gym.tools.commands import arguments
 from emmi_gym.world import LaserConfig, OdometryNoise, Simulator, drive_route, load_world, rasterise
 from emmi_gym.world.presets import laser_config, odometry_config
 

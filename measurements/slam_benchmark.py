@@ -12,8 +12,8 @@ and maximum milliseconds per update (wall time; whole update, and of it the matc
 insertion and the certainty metrics), the median CPU time per update of all the process's
 threads (the kernels run on one thread per core: compare this with GMapping's, which has one),
 the resamplings, and writes the best particle's map as PNG beside the corrected
-map's picture, and its trajectory in the TUM format. Run with ``--jobs 1`` for the
-timings (parallel runs share the cores). With several ``--filter-seeds`` (the filter's own
+map's picture, and its trajectory in the TUM format. Run with ``--jobs 1`` (in this process) for
+the timings (parallel runs share the cores). With several ``--filter-seeds`` (the filter's own
 random draws) each log and seed runs once per filter seed, and a last table gives each
 log's median ATE over all its runs: one run says little about a change to the filter.
 """
@@ -28,6 +28,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import _arguments as arguments
 import numpy as np
 from _data import require_files
 from _options import rbpf_config
@@ -35,7 +36,6 @@ from _options import rbpf_config
 from emmi_gym.concurrency.threads import set_kernel_threads
 from emmi_gym.formats.carmen import read_log
 from emmi_gym.slam import RBPFConfig
-from emmi_gym.tools.commands import arguments
 from emmi_gym.tools.experiments.replay import replay, write_map_png, write_tum
 
 LOGS = ("intel", "aces", "csail", "freiburg-079")
@@ -82,7 +82,7 @@ def main() -> None:
     parser.add_argument("--slam", default="{}", help="further RBPFConfig fields as JSON")
     parser.add_argument("--filter-seeds", nargs="+", type=arguments.SEED, default=[0], help="the filter's random seeds")
     parser.add_argument("--out", default="slam_benchmark")
-    parser.add_argument("--jobs", type=arguments.integer(1), default=1)
+    parser.add_argument("--jobs", type=arguments.integer(1), default=1, help="replays at a time (1: in this process)")
     parser.add_argument("--threads", type=arguments.integer(1), default=None,
                         help="kernel threads per run (default: one per core)")
     parser.add_argument("--flaser-fov", type=arguments.number(0.0, 360.0, "degrees"), default=180.0,
@@ -102,10 +102,13 @@ def main() -> None:
         picture = corrected / f"{name}-corrected.png"
         if picture.exists():
             shutil.copy(picture, out / picture.name)
-    with ProcessPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(run_one, [p for p, _ in runs], [config] * len(runs), [args.max_range] * len(runs),
-                                [out] * len(runs), [f for _, f in runs], [args.threads] * len(runs),
-                                [args.flaser_fov] * len(runs)))
+    jobs = [(path, config, args.max_range, out, filter_seed, args.threads, args.flaser_fov)
+            for path, filter_seed in runs]
+    if args.jobs == 1:
+        results = [run_one(*job) for job in jobs]
+    else:
+        with ProcessPoolExecutor(args.jobs) as pool:
+            results = list(pool.map(run_one, *zip(*jobs, strict=True)))
     print(f"{args.particles} particles, {args.resolution} m cells, every keyframe an update, max range "
           f"{args.max_range} m, FLASER field of view {args.flaser_fov:g} deg, preset {args.preset}, "
           f"overrides {args.slam}")

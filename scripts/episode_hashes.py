@@ -22,6 +22,8 @@ leaves the keys given out of the hash, and ``--options JSON`` makes every id wit
 options (the newer code asked for an ``info`` the older one gave unasked)::
 
     python scripts/episode_hashes.py --no-info > after.txt
+
+``--ids NAME ...`` hashes only those ids (``LoopCorridor-v1``, without the namespace).
 """
 
 from __future__ import annotations
@@ -118,10 +120,16 @@ def main() -> None:
     parser.add_argument("--drop-info", nargs="+", default=[], metavar="KEY", help="info keys left out of the hash")
     parser.add_argument("--options", default="{}", help="JSON of further gym.make options for every id")
     parser.add_argument("--no-replay", action="store_true", help="leave out the log replay")
+    parser.add_argument("--ids", nargs="+", metavar="NAME", help="only these ids (default: every registered one)")
     args = parser.parse_args()
     options = json.loads(args.options)
     gym.register_envs(emmi_gym)
     ids = sorted(i for i in gym.registry if i.startswith("emmi_gym/"))
+    if args.ids:
+        unknown = sorted(set(args.ids) - {i.removeprefix("emmi_gym/") for i in ids})
+        if unknown:
+            parser.error(f"--ids: no id {unknown} is registered; the ids: {[i.removeprefix('emmi_gym/') for i in ids]}")
+        ids = [i for i in ids if i.removeprefix("emmi_gym/") in args.ids]
     for env_id in ids:
         steps = args.velocity_steps if "Velocity" in env_id else args.decisions
         for seed in arguments.seed_range(args):

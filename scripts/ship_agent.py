@@ -7,7 +7,8 @@ model card (configuration, budget, seed, training time, and its evaluation besid
 The evaluation is ``emmi-gym evaluate --pretrained NAME`` with the same options, on held-out seeds (and,
 with ``--world``, on the maps given, e.g. ``dungeon_maps/test``); the card says how to reproduce it.
 ``--episodes-csv`` takes the episodes from ``emmi-gym evaluate --out`` files instead (run elsewhere, e.g.
-on a larger machine, named by ``--evaluated-on``), the model's rows named ``agent`` there.
+on a larger machine, named by ``--evaluated-on``), the model's rows named ``agent`` there. ``--into`` ships it
+into another folder than the package's (to look at the card first).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from emmi_gym.tools.evaluation.comparison import markdown_table, policy_means
 from emmi_gym.tools.experiments.report import read_csv
 from emmi_gym.tools.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
 from emmi_gym.tools.training.run_folders import RunFolder
+from emmi_gym.tools.training.run_folders.model_files import saved_decisions
 from emmi_gym.tools.training.run_folders.training_record import (
     TRAINING_RECORD,
     TrainingRecordError,
@@ -52,6 +54,9 @@ def main() -> None:
                              "instead of evaluating")
     parser.add_argument("--evaluated-on", default=None, help="the machine the --episodes-csv files were made on")
     parser.add_argument("--note", default="", help="a paragraph for the card (e.g. what the run started from)")
+    parser.add_argument("--into", type=Path, default=pretrained.FOLDER,
+                        help="the folder of the shipped agents (default: the package's, where emmi_gym.pretrained "
+                             "finds them)")
     args = parser.parse_args()
     if args.episodes_csv and not args.evaluated_on:
         parser.error("--episodes-csv needs --evaluated-on")
@@ -67,7 +72,7 @@ def main() -> None:
     if record is None and args.training_seconds is None:
         parser.error(f"{args.run} has no {TRAINING_RECORD}: give --training-seconds")
 
-    folder = pretrained.FOLDER / args.name
+    folder = args.into / args.name
     folder.mkdir(parents=True, exist_ok=True)
     for name in ("model.zip", "config.yaml", TRAINING_RECORD):
         if (args.run / name).is_file():
@@ -103,7 +108,7 @@ def main() -> None:
 
 {config.algorithm} ({config.policy}) on `{config.env_id}` with the `{reward}` reward.{privileged}
 
-- Budget: {pretrained.load(args.name).num_timesteps} decisions, seed {config.seed}, {config.n_envs} envs.
+- Budget: {saved_decisions(folder / 'model.zip')} decisions, seed {config.seed}, {config.n_envs} envs.
 - Training time: {seconds / 60:.1f} min of wall time on {trained_on}.
 - Load it: `model = emmi_gym.pretrained.load("{args.name}")`; play it: `{command}`.
 {f"{chr(10)}{args.note}{chr(10)}" if args.note else ""}

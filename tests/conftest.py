@@ -58,3 +58,36 @@ def memory_given_back_after_each_file():
     trim = getattr(ctypes.CDLL(name), "malloc_trim", None) if name else None  # glibc's; other C libraries lack it
     if trim is not None:
         trim(0)
+
+
+#: The agent of :func:`small_corridor_run`: MaskablePPO on LoopCorridor-v1, 16 decisions in two updates.
+SMALL_CORRIDOR_AGENT = {
+    "env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3, "max_decisions": 3}},
+    "algorithm": "MaskablePPO", "policy": "MultiInputPolicy",
+    "hyperparameters": {"n_steps": 8, "batch_size": 8, "n_epochs": 1, "policy_kwargs": {"net_arch": [8]}},
+    "n_envs": 1, "vec_env": "dummy", "total_timesteps": 16, "seed": 3, "eval": {"freq": 0}, "checkpoint_freq": 8}
+
+
+@pytest.fixture(scope="session")
+def small_corridor_run(tmp_path_factory):
+    """The folder of a run of ``emmi-gym train`` small enough for a test (:data:`SMALL_CORRIDOR_AGENT`: a model,
+    checkpoints at 8 and 16 decisions, its configuration and record), for the slow tests of the scripts that read
+    trained runs; read it, do not change it."""
+    from emmi_gym.tools.training.config import parse_agent_config
+    from emmi_gym.tools.training.train import train
+
+    run = tmp_path_factory.mktemp("small_corridor_run")
+    train(parse_agent_config(SMALL_CORRIDOR_AGENT), run, progress=False)
+    return run
+
+
+@pytest.fixture(scope="session")
+def small_corridor_evaluation(small_corridor_run, tmp_path_factory):
+    """The ``--out`` folder of ``emmi-gym evaluate`` of :func:`small_corridor_run`'s model beside the frontier
+    policy (its rows named ``agent``): two held-out episodes each, from seed 7."""
+    from emmi_gym.tools.cli import main
+
+    out = tmp_path_factory.mktemp("small_corridor_evaluation")
+    assert main(["evaluate", str(small_corridor_run / "model.zip"), "--episodes", "2", "--seed", "7", "--baselines",
+                 "frontier", "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    return out

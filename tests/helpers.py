@@ -1,15 +1,21 @@
 """Assertions and paths shared by the test modules (``pythonpath = ["tests"]`` in pyproject.toml makes this
 module importable from every folder of tests/)."""
 
+import importlib
+import io
+import runpy
 import shutil
 import signal
 import subprocess
+import sys
 import tempfile
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pytest
 from scipy import ndimage
 
 from emmi_gym.world import rasterise
@@ -17,6 +23,8 @@ from emmi_gym.world import rasterise
 #: The repository's root, and the data files of the tests, wherever a test file sits under tests/.
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"
+#: The folders of the measurement scripts and of the maintainers' scripts.
+MEASUREMENTS, SCRIPTS = ROOT / "measurements", ROOT / "scripts"
 
 
 def assert_same(a, b) -> None:
@@ -87,3 +95,59 @@ def ray_temp_dir():
             if not temp.exists():
                 break
             time.sleep(0.2)
+
+
+def markdown_rows(out: str) -> list[list[str]]:
+    """The cells of every row of the Markdown tables in ``out``, their headers and rules left out."""
+    lines = out.splitlines()
+    rows = []
+    for k, line in enumerate(lines):
+        ruled = k + 1 < len(lines) and lines[k + 1].startswith("| ---")
+        if line.startswith("|") and not line.startswith("| ---") and not ruled:
+            rows.append([cell.strip() for cell in line.strip().strip("|").split("|")])
+    return rows
+
+
+@dataclass
+class ScriptRun:
+    """What a script run by :func:`run_script` did: its exit status and what it wrote to stdout and stderr."""
+
+    code: int
+    out: str
+    err: str
+
+
+def run_script(path: Path, *args, cwd: Path | None = None) -> ScriptRun:
+    """Run the script ``path`` with ``args`` as ``python path args`` runs it, but in this process (no interpreter
+    start and no imports again, which the quick lane could not afford): its exit status, stdout and stderr.
+    Its folder is on ``sys.path`` while it runs (a script imports its neighbours, ``_timing``, ``_options``),
+    ``sys.argv`` is its own, and the methods a benchmark wraps to time them (``_timing.timed``) are put back
+    after it, so that no later test runs through its wrappers."""
+    path = Path(path)
+    out, err = io.StringIO(), io.StringIO()
+    with pytest.MonkeyPatch.context() as patch, redirect_stdout(out), redirect_stderr(err):
+        patch.setattr(sys, "argv", [str(path), *map(str, args)])
+        patch.syspath_prepend(str(path.parent))
+        if cwd is not None:
+            patch.chdir(cwd)
+        if (path.parent / "_timing.py").is_file():
+            _put_back_what_timed_wraps(patch, importlib.import_module("_timing"))
+        try:
+            runpy.run_path(str(path), run_name="__main__")
+            code = 0
+        except SystemExit as done:
+            code = done.code if isinstance(done.code, int) else 0 if done.code is None else 1
+            if isinstance(done.code, str):
+                err.write(done.code + "\n")
+    return ScriptRun(code, out.getvalue(), err.getvalue())
+
+
+def _put_back_what_timed_wraps(patch: pytest.MonkeyPatch, timing) -> None:
+    """Make ``timing.timed`` record each attribute it is about to wrap with ``patch``, which puts it back."""
+    wrap = timing.timed
+
+    def timed(owner, name, *args, **kwargs):
+        patch.setattr(owner, name, getattr(owner, name))  # recorded as it is now; undone when the patch ends
+        return wrap(owner, name, *args, **kwargs)
+
+    patch.setattr(timing, "timed", timed)

@@ -1,4 +1,4 @@
-"""The training side's probes of ``scripts/hardening_audit.py``: runs, clones, resumes, model and demonstration
+"""The training side's probes of ``tests/hardening/hardening_audit.py``: runs, clones, resumes, model and demonstration
 files, training records and the tools' CSVs, each tried as a hostile but realistic user would, and each
 given a verdict: a clear error (exit status not 0, no traceback, the message naming what is wrong), a
 success that did what it should, or one of the failures the audit counts: a silent wrong result (exit

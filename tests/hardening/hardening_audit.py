@@ -8,7 +8,7 @@ files), each given to the command or function it targets in a process of its own
 60 s or above 3 GB: its exit status, the last line it printed (the error, or the last progress
 bar if it was killed), the seconds and the process's peak resident memory. Every probe should
 end within the minute (or show progress) under 1 GB, with a message naming the file, field or
-option. The third: the training side (``_training_probes``: runs, clones, resumes, model and
+option. The third: the training side (``training_probes``: runs, clones, resumes, model and
 demonstration files, training records, the tools' CSVs, and the third audit's cases G1-G8: resumes
 whose models do not load, ``record`` over its world, bag odometry that goes back or is not finite,
 model pickles that run code, ``replay`` into an earlier replay, a finished run resumed, a damaged
@@ -16,10 +16,10 @@ only checkpoint), each probe with a verdict (a clear error,
 did what it should, or a silent wrong result, data loss, a raw traceback, over 1 GB or 120 s) and a
 summary line counting them.
 
-    python scripts/hardening_audit.py                  # about ten minutes
-    python scripts/hardening_audit.py --probes-only    # the second and third tables (inputs: ~1 min to make)
-    python scripts/hardening_audit.py --training-side  # the third table (a small run trained first, ~30 s)
-    python scripts/hardening_audit.py --train          # also Ctrl-C / kill -INT of a training run (~1 min more)
+    python tests/hardening/hardening_audit.py                  # about ten minutes
+    python tests/hardening/hardening_audit.py --probes-only    # the second and third tables (inputs: ~1 min to make)
+    python tests/hardening/hardening_audit.py --training-side  # the third table (a small run trained first, ~30 s)
+    python tests/hardening/hardening_audit.py --train          # also Ctrl-C / kill -INT of a training run (~1 min more)
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ import tracemalloc
 import zipfile
 import zlib
 from pathlib import Path
+from typing import NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -62,8 +63,18 @@ AGENT = {"env": {"id": "emmi_gym/LoopCorridor-v1", "kwargs": {"particles": 3}}, 
          "policy": "MultiInputPolicy", "hyperparameters": {"n_steps": 16}, "n_envs": 1, "vec_env": "dummy"}
 
 
-def run_case(action, limit: float = 120.0) -> tuple[str, float, float]:
-    """(outcome, seconds, peak MB) of calling ``action``; the outcome is its error's message or its result."""
+class Case(NamedTuple):
+    """What calling a case's action did: the outcome (its error's class and message, or ``ok:`` and its
+    result), its seconds, the peak memory Python allocated for it (MB) and the error itself (None if none)."""
+
+    outcome: str
+    seconds: float
+    peak_mb: float
+    error: BaseException | None
+
+
+def run_case(action, limit: float = 120.0) -> Case:
+    """:class:`Case` of calling ``action``, stopped by a ``TimeoutError`` after ``limit`` seconds."""
     def alarm(*_):
         raise TimeoutError(f"still running after {limit:.0f} s")
 
@@ -71,17 +82,18 @@ def run_case(action, limit: float = 120.0) -> tuple[str, float, float]:
     signal.alarm(int(limit))
     tracemalloc.start()
     started = time.perf_counter()
+    error = None
     try:
         outcome = f"ok: {action()}"
     except BaseException as exc:  # noqa: BLE001  (the audit reports whatever happens)
-        outcome = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        outcome, error = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}", exc
     finally:
         seconds = time.perf_counter() - started
         peak = tracemalloc.get_traced_memory()[1] / 1e6
         tracemalloc.stop()
         signal.alarm(0)
         signal.signal(signal.SIGALRM, previous)
-    return outcome, seconds, peak
+    return Case(outcome, seconds, peak, error)
 
 
 def make(env_id="emmi_gym/LoopCorridor-v1", reset=False, **options):
@@ -563,8 +575,8 @@ def probes(folder: Path, only: str | None = None) -> None:
 
 
 def training_side(folder: Path, only: str | None = None) -> None:
-    """The training side's probes (``_training_probes``): a table of verdicts and a summary line."""
-    from _training_probes import LIMIT_MB, LIMIT_SECONDS, digest, training_probes, verdict
+    """The training side's probes (``training_probes``): a table of verdicts and a summary line."""
+    from training_probes import LIMIT_MB, LIMIT_SECONDS, digest, training_probes, verdict
 
     print("\n| probe (training side) | exit | verdict | outcome (last line of output) | s | peak MB |\n"
           "| --- | --- | --- | --- | --- | --- |", flush=True)
@@ -603,7 +615,7 @@ def main() -> None:
         if not args.probes_only:
             print("| case | outcome | s | peak MB |\n| --- | --- | --- | --- |")
             for label, action in cases(folder):
-                outcome, seconds, peak = run_case(action)
+                outcome, seconds, peak, _ = run_case(action)
                 print(f"| {label} | {outcome[:220].replace('|', '/')} | {seconds:.2f} | {peak:.1f} |", flush=True)
         (folder / "probes").mkdir()
         probes(folder / "probes", args.only)
