@@ -23,10 +23,10 @@ from pathlib import Path
 
 import _arguments as arguments
 
-from emmi_gym.tools.evaluation.comparison import play_on_world, plot_pair
+from emmi_gym.tools.evaluation.comparison import format_table, play_on_world, plot_pair
 from emmi_gym.tools.evaluation.loop_order import LOOP_ORDER_KEY
 from emmi_gym.tools.experiments.report import read_csv
-from emmi_gym.tools.training.evaluate import TrainedAgent, comparison_settings, format_table
+from emmi_gym.tools.training.evaluate import TrainedAgent, comparison_settings
 from emmi_gym.tools.training.run_folders import RunFolder
 
 

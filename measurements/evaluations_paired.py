@@ -24,12 +24,15 @@ import numpy as np
 from emmi_gym.inputs.csv_files import CsvFileError, read_csv_file
 from emmi_gym.tools.evaluation.comparison import SCORES, difference_cell, markdown_table, paired
 from emmi_gym.tools.evaluation.directions import format_number
+from emmi_gym.tools.evaluation.episodes import nanmean
 from emmi_gym.tools.evaluation.robot_time import TIME, TRACED, at_equal_robot_time, with_traces
 from emmi_gym.world.map_sets import world_name
 
 KEYS = ("world", "seed", "policy")
 #: The scores of the compact tables: the final map's quality, then the robot time.
-COMPACT = ("oracle_accuracy", "ate", "wall_consistency", "coverage", TIME)
+COMPACT = ("oracle_accuracy", "ate", "wall_consistency", "coverage", "building_accuracy", TIME)
+#: What every traces file holds (the building accuracy only those written since it was traced: NaN in the others).
+ALWAYS_TRACED = tuple(column for column in TRACED if column != "building_accuracy")
 
 
 def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
@@ -43,7 +46,8 @@ def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
             episodes = read_csv_file(folder / "episodes.csv", "episodes file", required=KEYS,
                                      optional_numeric=(*SCORES, "seed"))
             points = read_csv_file(folder / "traces.csv", "traces file", required=KEYS,
-                                   numeric=("sim_steps", *TRACED, "seed")) if traces else []
+                                   numeric=("sim_steps", *ALWAYS_TRACED, "seed"),
+                                   optional_numeric=TRACED) if traces else []
         except (CsvFileError, OSError) as error:
             raise SystemExit(str(error)) from None
         for row in (*episodes, *points):
@@ -65,7 +69,7 @@ def means_table(rows: list[dict], policies: list[str]) -> str:
              "| --- | --- | " + " | ".join("---" for _ in columns) + " |"]
     for name in policies:
         mine = [row for row in rows if row["policy"] == name]
-        means = [format_number(np.nanmean([row.get(c, np.nan) for row in mine]), c) for c in columns]
+        means = [format_number(nanmean([row.get(c, np.nan) for row in mine]), c) for c in columns]
         lines.append(f"| {name} | {len(mine)} | " + " | ".join(means) + " |")
     return "\n".join(lines)
 

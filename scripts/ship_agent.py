@@ -24,9 +24,9 @@ import yaml
 from emmi_gym import pretrained
 from emmi_gym.env.reward_registry import reward_named
 from emmi_gym.tools.commands import arguments
-from emmi_gym.tools.evaluation.comparison import markdown_table, policy_means
+from emmi_gym.tools.evaluation.comparison import format_table, markdown_table, policy_means
 from emmi_gym.tools.experiments.report import read_csv
-from emmi_gym.tools.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model, format_table
+from emmi_gym.tools.training.evaluate import EVALUATION_SEED, OWN_WORLD, compare_model
 from emmi_gym.tools.training.run_folders import RunFolder
 from emmi_gym.tools.training.run_folders.model_files import saved_decisions
 from emmi_gym.tools.training.run_folders.training_record import (

@@ -8,7 +8,14 @@ import numpy as np
 from ..geometry.grid import GridGeometry
 from ..navigation.candidates import Target
 from ..navigation.follower import WaypointFollower
-from ..scoring.scores import absolute_trajectory_error, accuracy_of_labels, map_labels, oracle_scores_of_labels
+from ..scoring.scores import (
+    absolute_trajectory_error,
+    accuracy_of_labels,
+    building_accuracy_of_labels,
+    building_cells,
+    map_labels,
+    oracle_scores_of_labels,
+)
 from ..slam import RBPF, RBPFConfig, UpdateMetrics
 from ..world import (
     GeneratorConfig,
@@ -83,6 +90,7 @@ class EmmiEnv(gym.Env):
         self.truth: GroundTruth | None = None
         self._reachable: np.ndarray | None = None  # the truth's reachable free space, and its cells (at least 1)
         self._n_reachable = 1
+        self._building: np.ndarray | None = None  # the truth's cells a laser could ever observe (building_cells)
         # the episode's (set at reset)
         self.slam: RBPF | None = None
         self.episode: RobotEpisode | None = None
@@ -180,6 +188,7 @@ class EmmiEnv(gym.Env):
         self.truth = rasterise(world, self.config.resolution, self.geometry)
         self._reachable = self.truth.reachable
         self._n_reachable = max(1, int(self._reachable.sum()))
+        self._building = building_cells(self.truth.grid)
 
     def step(self, action):
         if self.slam is None:
@@ -226,7 +235,8 @@ class EmmiEnv(gym.Env):
     def ground_truth_scores(self) -> dict[str, float]:
         """The scores against the ground truth (:data:`~emmi_gym.env.rewards.SCORES`) as of the filter's last
         update, measured once per update when first asked: the accuracy against the floor plan and against the
-        oracle map, the wall consistency and the ATE (ground truth, for evaluation and privileged rewards
+        oracle map, the wall consistency, the ATE and the building accuracy (the share of the building mapped
+        correctly, unmapped cells counting as wrong) (ground truth, for evaluation and privileged rewards
         only; what the episode's last ``info`` holds)."""
         if self._expected is None:
             raise RuntimeError("call reset() before ground_truth_scores(): there is no map to score yet")
@@ -236,7 +246,8 @@ class EmmiEnv(gym.Env):
             ate = absolute_trajectory_error(self.slam.paths[self.slam.best], self.episode.true_poses_at_updates,
                                             align=False)
             self._scores = {"map_accuracy": accuracy_of_labels(mine, self.truth.grid),
-                            "oracle_accuracy": oracle_accuracy, "wall_consistency": wall_consistency, "ate": ate}
+                            "oracle_accuracy": oracle_accuracy, "wall_consistency": wall_consistency, "ate": ate,
+                            "building_accuracy": building_accuracy_of_labels(mine, self.truth.grid, self._building)}
         return dict(self._scores)
 
     def _measures(self) -> dict[str, float]:

@@ -43,7 +43,7 @@ from ..inputs.validation import OptionError
 FILTER_MEASURES = ("emmi", "map_information", "mean_information_best", "pose_entropy", "weight_entropy",
                    "path_entropy", "joint_entropy", "neff")
 #: The ground-truth scores the environment computes only when a reward, ``info`` or the episode's end needs them.
-SCORES = ("map_accuracy", "oracle_accuracy", "wall_consistency", "ate")
+SCORES = ("map_accuracy", "oracle_accuracy", "wall_consistency", "ate", "building_accuracy")
 #: What a reward may read of the ground truth (coverage is read on the oracle map, the scans at the true poses; the
 #: episode's end reads it at every step).
 TRUTH_MEASURES = ("coverage", *SCORES)

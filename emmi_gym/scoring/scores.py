@@ -1,4 +1,5 @@
-"""Scores against ground truth: trajectory error (ATE), map accuracy against the floor plan and against the oracle map.
+"""Scores against ground truth: trajectory error (ATE), map accuracy against the floor plan and against the oracle map,
+and the building accuracy (the share of the whole building mapped correctly).
 
 Neutral helpers: the SLAM replay, the tests and the environment's ``info`` use them;
 they know arrays, not worlds or filters.
@@ -122,6 +123,43 @@ def accuracy_of_labels(labels: np.ndarray, truth_grid: np.ndarray, unknown: int 
     if not known.any():
         return 0.0
     return float(np.mean((labels[known] == 1) == (truth_grid[known] == occupied)))
+
+
+def building_cells(truth_grid: np.ndarray, unknown: int = -1, occupied: int = 1) -> np.ndarray:
+    """The cells of the building a laser could ever observe, as a boolean mask: the truth's free cells (the free
+    space reachable from the start, all that :func:`~emmi_gym.world.rasterise` labels free) and its ``occupied``
+    cells that touch one of them, side or corner (the walls' faces, where a beam from the free space ends).
+    The inside of a thick wall, closed-off pockets and the outside are no laser's to see."""
+    truth = np.asarray(truth_grid)
+    free = (truth != unknown) & (truth != occupied)
+    faces = ndimage.binary_dilation(free, structure=np.ones((3, 3), dtype=bool)) & (truth == occupied)
+    return free | faces
+
+
+def building_accuracy(probabilities: np.ndarray, truth_grid: np.ndarray, unknown: int = -1, occupied: int = 1,
+                      observed_tol: float = DEFAULT_OBSERVED_TOL) -> float:
+    """Share of the building's cells (:func:`building_cells`) that the map has observed (eq. 10) and labels as
+    the floor plan does (occupied when p > 0.5, else free); an unobserved cell counts as wrong. So a complete,
+    correct map scores 1.0 and an empty one 0.0, and mapping less never scores more: where
+    :func:`map_accuracy` and :func:`oracle_accuracy` judge only what was mapped, this also counts what was
+    not (a score to compare maps at equal robot time). Its ceiling is what the sensor model and the grid
+    leave of the floor plan (the final :func:`map_accuracy` of a perfectly localised map)."""
+    p = np.asarray(probabilities)
+    if p.shape != np.shape(truth_grid):
+        raise ValueError(f"map {p.shape} and truth {np.shape(truth_grid)} must share one grid")
+    return building_accuracy_of_labels(map_labels(p, observed_tol), truth_grid,
+                                       building_cells(truth_grid, unknown, occupied), occupied)
+
+
+def building_accuracy_of_labels(labels: np.ndarray, truth_grid: np.ndarray, cells: np.ndarray,
+                                occupied: int = 1) -> float:
+    """:func:`building_accuracy` of a map already labelled by :func:`map_labels`, on the building's ``cells``
+    (:func:`building_cells` of ``truth_grid``, computed once per world); 0.0 for a building of no cell."""
+    total = np.count_nonzero(cells)
+    if total == 0:
+        return 0.0
+    right = cells & (labels >= 0) & ((labels == 1) == (truth_grid == occupied))
+    return np.count_nonzero(right) / total
 
 
 #: How far (m) a map's wall cell may lie from the oracle map's nearest wall and still count as the same

@@ -135,6 +135,14 @@ def ray_address(args: argparse.Namespace) -> str | None:
     return None if args.ray in (None, RAY_DEFAULT_ADDRESS) else args.ray
 
 
+def add_seeds_per_plan(parser: argparse.ArgumentParser) -> None:
+    """``--seeds-per-plan K``, in ``evaluate`` and ``benchmark``: each plan of a map set played with K seeds."""
+    parser.add_argument("--seeds-per-plan", type=integer(1, MAX_EPISODES), default=1, metavar="K",
+                        help="play each plan of the map set with K episode seeds (from the first seed on), paired "
+                             "per plan and seed across the policies; the intervals then resample plans, each with "
+                             "its K seeds, and the tables state the smallest difference they detect (default 1)")
+
+
 def add_torch_threads(parser: argparse.ArgumentParser, default: str) -> None:
     """``--torch-threads N``: the learner's torch threads (``default`` says what it is without the option)."""
     parser.add_argument("--torch-threads", type=integer(1), default=None, metavar="N",

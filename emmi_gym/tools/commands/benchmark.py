@@ -23,7 +23,9 @@ def add_parser(subparsers) -> None:
     bench.add_argument("--timesteps", type=arguments.integer(1), default=None,
                        help="training steps per agent (default: the configuration's total_timesteps)")
     bench.add_argument("--episodes", type=arguments.EPISODES, default=10,
-                       help="held-out evaluation episodes per agent and per baseline (default 10)")
+                       help="held-out evaluation episodes per agent and per baseline (default 10; on a map set, its "
+                            "first maps, one episode each, or --seeds-per-plan each)")
+    arguments.add_seeds_per_plan(bench)
     bench.add_argument("--eval-seed", type=arguments.SEED, default=HELD_OUT_SEED,
                        help=f"first held-out episode's seed, for the agents and the baselines alike (default "
                             f"{HELD_OUT_SEED}: the held-out seeds)")
@@ -79,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
                             baselines, args.out, workers=args.workers, ray_address=ray_address,
                             progress=not args.quiet, init_from=args.init_from,
                             allow_no_training=args.allow_no_training, eval_seed=args.eval_seed,
-                            rollout_workers=args.rollout_workers, train_only=args.train_only, report=print)
+                            rollout_workers=args.rollout_workers, train_only=args.train_only,
+                            seeds_per_plan=args.seeds_per_plan, report=print)
     elapsed = time.perf_counter() - started
     if args.train_only:
         for result in results:
@@ -90,15 +93,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"every agent finished in {elapsed / 60:.1f} min; run again without --train-only to evaluate them and "
               "the baselines")
         return 0
+    per_plan = f" x {args.seeds_per_plan} seeds" if args.seeds_per_plan > 1 else ""
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
               f"{args.timesteps} training steps per agent"
               f"{f' (from the weights of {args.init_from})' if args.init_from else ''}, "
               f"seeds {args.first_seed}-{args.first_seed + args.seeds - 1} per reward, {args.episodes} held-out "
-              f"evaluation episodes each (seeds from {args.eval_seed}); {elapsed / 60:.1f} min wall time "
+              f"evaluation episodes each{per_plan} (seeds from {args.eval_seed}); {elapsed / 60:.1f} min wall time "
               f"({'Ray' if args.ray else 'local processes'}"
               f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}). "
-              f"Mean [95% t-interval]: over agents for trained variants (one agent: its mean), over episodes "
+              f"Mean [95% t-interval]: over agents for trained variants (one agent: its mean), over plans "
               f"for the baselines.")
     files = write_benchmark(results, args.out, header)
     print(files["summary"].read_text())

@@ -30,8 +30,9 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..evaluation.comparison import format_table
     from ..training.checkpoint_scores import CURVE_FILE, EPISODES_FILE, score_runs
-    from ..training.evaluate import OWN_WORLD, format_table
+    from ..training.evaluate import OWN_WORLD
 
     def report(run_dir, curve) -> None:
         print(f"{run_dir}: {len(curve)} checkpoints x {args.episodes} episodes: wrote {run_dir / CURVE_FILE} and "

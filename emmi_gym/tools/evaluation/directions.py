@@ -18,7 +18,8 @@ HIGHER, LOWER = 1, -1
 
 #: The measures with a better side: +1 where higher is better, -1 where lower is.
 BETTER = {
-    **dict.fromkeys(("map_accuracy", "oracle_accuracy", "wall_consistency", "coverage", "reached_target",
+    **dict.fromkeys(("map_accuracy", "oracle_accuracy", "wall_consistency", "coverage", "building_accuracy",
+                     "reached_target",
                      "completed", "loop_closed", "new_area_accuracy", "new_area_accuracy_on_arrival",
                      "emmi_change", "return"), HIGHER),
     **dict.fromkeys(("ate", "loop_ate", "closure_error", "sim_steps_to_target", "pose_entropy_change",

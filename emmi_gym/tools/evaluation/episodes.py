@@ -9,9 +9,13 @@ import numpy as np
 from .loop_order import LOOP_ORDER_KEY
 from .robot_time import TRACE, TRACED, trace_point
 
-#: What an episode's last ``info`` says against the ground truth (and the certainty it ended with).
+#: What an episode's last ``info`` says against the ground truth (and the certainty it ended with): the columns of a
+#: run's periodic evaluations (``eval_ground_truth.csv``, one header for a run and its resumptions).
 GROUND_TRUTH = ("coverage", "map_accuracy", "oracle_accuracy", "wall_consistency", "ate", "emmi", "pose_entropy",
                 "joint_entropy", "collisions", "sim_steps")
+#: What an evaluation episode's row holds of its last ``info``: :data:`GROUND_TRUTH` and the building accuracy (the
+#: share of the building mapped correctly, unmapped cells counting as wrong).
+EPISODE_SCORES = (*GROUND_TRUTH, "building_accuracy")
 
 
 def info_options(keep_steps: bool = False, keep_trace: bool = False) -> dict:
@@ -53,7 +57,7 @@ class PolicyActor:
 
 
 def play_episode(env, actor, seed: int, keep_steps: bool = False, keep_trace: bool = False) -> dict:
-    """One episode with ``actor``; its return, steps and ground-truth measures (see :data:`GROUND_TRUTH`).
+    """One episode with ``actor``; its return, steps and ground-truth measures (see :data:`EPISODE_SCORES`).
 
     ``sim_steps_to_target`` is the simulator steps until the coverage target (NaN if it was
     not reached); where the episode starts at a loop's decision point and ``env`` is wrapped in
@@ -89,7 +93,7 @@ def play_episode(env, actor, seed: int, keep_steps: bool = False, keep_trace: bo
                          "target_kind": info.get("target_kind"), "target_xy": target})
         if keep_trace:
             trace.append(trace_point(info))
-    row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in GROUND_TRUTH},
+    row = {"episode_seed": seed, "return": total, "env_steps": steps, **{k: float(info[k]) for k in EPISODE_SCORES},
            "reached_target": float(terminated),
            "sim_steps_to_target": float(info["sim_steps"]) if terminated else math.nan,
            "revisit_share": revisits / steps if "target_kind" in info else math.nan}

@@ -6,14 +6,21 @@ is not a fair win: an evaluation "at equal robot time" reads the longer episode 
 Each episode keeps a trace of its ground-truth scores after every decision (and at the reset); the score at a robot
 time between two decisions is linear between them (a decision on a floor plan moves the robot for 100-200
 simulator steps), and an episode read past its end gives its final score.
+
+The accuracy against the oracle map and the ATE judge only what has been mapped and driven so far, so read early
+they favour whoever has explored less; the coverage and the building accuracy (the share of the building mapped
+correctly, unmapped cells counting as wrong: :func:`~emmi_gym.scoring.scores.building_accuracy`) are read beside
+them, so that mapping less never reads as mapping better.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 #: The ground-truth scores a trace keeps, read at equal robot time (``info`` keys of the env).
-TRACED = ("oracle_accuracy", "ate", "wall_consistency", "coverage")
+TRACED = ("oracle_accuracy", "ate", "wall_consistency", "coverage", "building_accuracy")
 #: The column of the robot time (simulator steps) in a trace and in an episode row.
 TIME = "sim_steps"
 #: The row key of an episode's trace: a list of :func:`trace_point` dicts.
@@ -45,8 +52,8 @@ def read_together(mine: dict, theirs: dict) -> tuple[dict, dict]:
 
 def at_equal_robot_time(rows: list[dict], policy: str, baseline: str, keys=("world", "seed")) -> list[dict]:
     """For each (world, seed) both ``policy`` and ``baseline`` played (rows with a :data:`TRACE`, matched on
-    ``keys``), a row of each read together (:func:`read_together`), with ``keys`` and ``policy``: the paired
-    tables of final scores read them as they are."""
+    ``keys``), a row of each read together (:func:`read_together`), with ``keys``, the ``plan`` where the row has
+    one, and ``policy``: the paired tables of final scores read them as they are."""
     by_key = {(*(row[k] for k in keys), row["policy"]): row for row in rows if TRACE in row}
     read = []
     for (*where, name), mine in by_key.items():
@@ -54,7 +61,7 @@ def at_equal_robot_time(rows: list[dict], policy: str, baseline: str, keys=("wor
         if name != policy or theirs is None:
             continue
         for row, scores in zip((mine, theirs), read_together(mine, theirs), strict=True):
-            read.append({**{k: row[k] for k in keys}, "policy": row["policy"], **scores})
+            read.append({**{k: row[k] for k in (*keys, "plan") if k in row}, "policy": row["policy"], **scores})
     return read
 
 
@@ -66,11 +73,12 @@ def trace_rows(rows: list[dict], keys=("world", "seed", "policy")) -> list[dict]
 
 def with_traces(rows: list[dict], points: list[dict], keys=("world", "seed", "policy")) -> list[dict]:
     """Episode ``rows`` given back their traces from ``points`` (rows of a trace file, :func:`trace_rows`),
-    matched on ``keys``; a row that no point matches stays without a trace."""
+    matched on ``keys``; a row that no point matches stays without a trace, a score a file does not hold (one
+    written before the score was traced) is NaN."""
     traces: dict[tuple, list[dict]] = {}
     for point in points:
         traces.setdefault(tuple(point[k] for k in keys), []).append(
-            {TIME: float(point[TIME]), **{column: float(point[column]) for column in TRACED}})
+            {TIME: float(point[TIME]), **{column: float(point.get(column, math.nan)) for column in TRACED}})
     return [{**row, TRACE: traces[key]} if (key := tuple(row[k] for k in keys)) in traces else dict(row)
             for row in rows]
 

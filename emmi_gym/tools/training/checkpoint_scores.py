@@ -14,10 +14,10 @@ from pathlib import Path
 from ...formats.atomic_files import write_csv
 from ...inputs.user_paths import output_folder
 from ...inputs.validation import MAX_EPISODES
-from ..evaluation.comparison import compare_on, episodes_on
+from ..evaluation.comparison import compare_on
 from ..evaluation.episodes import nanmean
 from ..evaluation.loop_order import LOOP_ORDER_KEY
-from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, comparison_settings
+from .evaluate import EVALUATION_SEED, OWN_WORLD, TrainedAgent, run_episodes
 from .run_folders import RunFolder
 
 #: The measures of a checkpoint's row: the means over its episodes of these columns of the episode rows.
@@ -30,16 +30,16 @@ def score_checkpoints(run_dir, world=OWN_WORLD, episodes: int = 16, seed: int = 
     """``(curve, rows)``: ``curve`` a row per whole checkpoint of ``run_dir`` (``timesteps``, then the
     mean of each of :data:`MEASURES` over the episodes, of the finite values: ``sim_steps_to_target``
     over those that reached the target), fewest decisions first; ``rows`` every episode, its policy
-    named ``model_<N>``. The episodes are :func:`~emmi_gym.tools.evaluation.comparison.episodes_on`
+    named ``model_<N>``. The episodes are :func:`~emmi_gym.tools.training.evaluate.run_episodes`
     ``(world, episodes, seed)`` in the run's evaluation env (by default on that env's own world); a
     damaged checkpoint (cut short by a kill) is skipped with a warning."""
     if not 1 <= episodes <= MAX_EPISODES:
         raise ValueError(f"episodes: expected an integer in [1, {MAX_EPISODES}], got {episodes!r}")
     found = RunFolder(run_dir).whole_checkpoints()
-    settings, own_world = comparison_settings(RunFolder.config_of_model(found[0][1]))
+    settings, pairs = run_episodes(RunFolder.config_of_model(found[0][1]), world, episodes, seed)
     agents = [TrainedAgent(str(path), f"model_{decisions}") for decisions, path in found]
-    rows = compare_on(episodes_on(own_world if world is OWN_WORLD else world, episodes, seed), agents, settings,
-                      workers=workers, progress=progress, start_method="spawn")  # torch and fork do not mix
+    rows = compare_on(pairs, agents, settings, workers=workers, progress=progress,
+                      start_method="spawn")  # torch and fork do not mix
     curve = []
     for decisions, _ in found:
         mine = [r for r in rows if r["policy"] == f"model_{decisions}"]

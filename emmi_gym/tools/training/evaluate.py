@@ -1,14 +1,19 @@
-"""Evaluating a trained model: episodes on held-out seeds, a table of return and every ground-truth
-metric, and optionally a video of each episode (gymnasium's ``RecordVideo``)."""
+"""A trained model in the evaluation: :class:`TrainedAgent`, the policy that plays it beside the scripted ones, and a
+run's held-out evaluation: its env and episodes (:func:`run_episodes`), the model alone there with a video of each
+episode if asked (:func:`evaluate_model`), or beside other policies (:func:`compare_model`). The episodes are played
+and scored by :mod:`emmi_gym.tools.evaluation.comparison`, as every other policy's."""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from ..._moved import moved_names
 from ...env.seeds import HELD_OUT_SEED
-from ..evaluation.directions import better_side, format_number
+from ..evaluation import comparison
+from ..evaluation.comparison import EpisodesOn, compare_on, episodes_on
 from ..evaluation.episodes import ModelActor, info_options, play_episodes
 from .run_folders import RunFolder
 from .run_folders.model_files import load_model_file
@@ -18,6 +23,8 @@ from .train import make_agent_env
 OWN_WORLD = object()
 #: Evaluation episodes are seeded from here on by default: the held-out seeds (:mod:`emmi_gym.env.seeds`).
 EVALUATION_SEED = HELD_OUT_SEED
+#: The names that moved to :mod:`emmi_gym.tools.evaluation.comparison` (deprecated here).
+__getattr__ = moved_names(__name__, comparison, ("format_table",), "0.5.0")
 
 
 @dataclass(frozen=True)
@@ -95,66 +102,38 @@ def comparison_settings(config):
     (every keyword but the world, set per episode), and that env's own world."""
     import gymnasium as gym
 
-    from ..evaluation.comparison import ComparisonSettings
-
     options = dict(config.eval_env_kwargs)
     own_world = options.pop("world", gym.spec(config.env_id).kwargs.get("world"))
-    return ComparisonSettings(config.env_id, options), own_world
+    return comparison.ComparisonSettings(config.env_id, options), own_world
+
+
+def run_episodes(config, world=OWN_WORLD, episodes: int = 10, seed: int = EVALUATION_SEED,
+                 seeds_per_plan: int = 1) -> tuple[comparison.ComparisonSettings, EpisodesOn]:
+    """The settings and the episodes of an evaluation in the held-out evaluation env of a run's ``config``
+    (:func:`comparison_settings`): :func:`~emmi_gym.tools.evaluation.comparison.episodes_on` ``(world, episodes,
+    seed, seeds_per_plan)``, ``world`` a world, map set, folder or glob (default: the evaluation env's own world).
+    On a map set, its first ``episodes`` plans, each with ``seeds_per_plan`` seeds."""
+    settings, own_world = comparison_settings(config)
+    return settings, episodes_on(own_world if world is OWN_WORLD else world, episodes, seed, seeds_per_plan)
 
 
 def compare_model(model_path, name: str = "agent", world=OWN_WORLD, episodes: int = 10, seed: int = EVALUATION_SEED,
-                  baselines=(), *, workers: int | None = None, progress: bool = True) -> list[dict]:
-    """The model and the ``baselines`` (scripted policies' names, :class:`TrainedAgent` s) on the same
-    ``episodes`` (world, seed) pairs, paired, in its run's evaluation env
-    (:func:`emmi_gym.tools.evaluation.comparison.compare_on`): ``world`` a world, map set, folder or glob
-    (default: the evaluation env's own world), its maps or seeds taken as
-    :func:`~emmi_gym.tools.evaluation.comparison.episodes_on` says. Rows carry ``name`` for the model, and
-    each episode's ``trace`` (for the comparison at equal robot time)."""
-    from ..evaluation.comparison import compare_on, episodes_on
-
-    settings, own_world = comparison_settings(RunFolder.config_of_model(model_path))
-    pairs = episodes_on(own_world if world is OWN_WORLD else world, episodes, seed)
+                  baselines=(), *, workers: int | None = None, progress: bool = True,
+                  seeds_per_plan: int = 1) -> list[dict]:
+    """The model and the ``baselines`` (scripted policies' names, :class:`TrainedAgent` s) on the same episodes of
+    :func:`run_episodes` in its run's evaluation env, paired
+    (:func:`emmi_gym.tools.evaluation.comparison.compare_on`). Rows carry ``name`` for the model, and each
+    episode's ``trace`` (for the comparison at equal robot time)."""
+    settings, pairs = run_episodes(RunFolder.config_of_model(model_path), world, episodes, seed, seeds_per_plan)
     return compare_on(pairs, [TrainedAgent(str(model_path), name), *baselines], settings, workers=workers,
                       progress=progress, keep_trace=True, start_method="spawn")  # torch and fork do not mix
 
 
 def write_figures(rows: list[dict], model_path, name: str, baselines, out) -> list[Path]:
-    """``front.png`` (map quality against robot time, a point per policy) and, beside a baseline,
-    ``maps.png``: the episode where the model's accuracy against the oracle map differs most from the
-    first baseline's (among those where it went back, if any), both maps with where it went back."""
-    from ..evaluation.comparison import play_on_world, plot_front, plot_pair, policy_name
-
-    out = Path(out)
-    plot_front(rows, out / "front.png")
-    written = [out / "front.png"]
-    if baselines:
-        mine = {(r["world"], r["seed"]): r for r in rows if r["policy"] == name}
-        theirs = {(r["world"], r["seed"]): r for r in rows if r["policy"] == policy_name(baselines[0])}
-        gaps = {key: mine[key]["oracle_accuracy"] - theirs[key]["oracle_accuracy"] for key in mine.keys() & theirs}
-        went_back = [key for key in gaps if mine[key].get("revisit_share", 0) > 0] or list(gaps)
-        world, seed = max(sorted(went_back), key=lambda key: abs(gaps[key]))
-        settings, _ = comparison_settings(RunFolder.config_of_model(model_path))
-        world = None if world == "None" else world  # rows name a generated world "None"
-        episodes = [play_on_world(world, seed, policy, settings, keep_maps=True, keep_steps=True)
-                    for policy in (TrainedAgent(str(model_path), name), baselines[0])]
-        plot_pair(episodes, out / "maps.png")
-        written.append(out / "maps.png")
-    return written
-
-
-def format_table(rows: list[dict], columns=None) -> str:
-    """A fixed-width text table of episode rows, numbers as every summary writes them (counts without
-    decimals, NaN as '-'), and a line naming which side of each measure shown is better."""
-    columns = columns or list(rows[0])
-
-    def text(value, column: str) -> str:
-        return format_number(value, column) if isinstance(value, float) else str(value)
-
-    cells = [[text(row.get(c, float("nan")), c) for c in columns] for row in rows]
-    widths = [max(len(c), 9, *(len(line[k]) for line in cells)) for k, c in enumerate(columns)]
-    lines = [" ".join(c.rjust(w) for c, w in zip(columns, widths, strict=False))]
-    lines += [" ".join(t.rjust(w) for t, w in zip(line, widths, strict=False)) for line in cells]
-    sides = {side: [c for c in columns if better_side(c) == side] for side in ("higher", "lower")}
-    if any(sides.values()):
-        lines.append("better: " + "; ".join(f"{side} {', '.join(names)}" for side, names in sides.items() if names))
-    return "\n".join(lines)
+    """Deprecated (goes in 0.5.0): :func:`emmi_gym.tools.evaluation.comparison.write_figures` of the model's
+    :class:`TrainedAgent` in its run's evaluation env."""
+    warnings.warn("emmi_gym.tools.training.evaluate.write_figures is now "
+                  "emmi_gym.tools.evaluation.comparison.write_figures(rows, policy, baselines, settings, out); the "
+                  "old name goes in emmi-gym 0.5.0", FutureWarning, stacklevel=2)
+    settings, _ = comparison_settings(RunFolder.config_of_model(model_path))
+    return comparison.write_figures(rows, TrainedAgent(str(model_path), name), baselines, settings, out)

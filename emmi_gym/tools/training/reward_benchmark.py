@@ -1,6 +1,7 @@
 """The reward benchmark: for each reward variant, train an agent per seed, then evaluate every agent
 and the baselines (scripted policies, shipped agents) on the *same* held-out episodes under the *same*
-ground-truth metrics, final and at equal robot time (:mod:`emmi_gym.tools.evaluation.robot_time`).
+ground-truth metrics, final and at equal robot time (:mod:`emmi_gym.tools.evaluation.robot_time`), played by
+:mod:`emmi_gym.tools.evaluation.comparison` (on a map set its first plans, each with one or several seeds).
 
 Runs are independent jobs: by default they go to local worker processes; with a Ray address
 (or "local" for a fresh local Ray instance) they go to a Ray cluster instead. Ray is an
@@ -26,16 +27,16 @@ from ...concurrency.parallel import run_in_processes
 from ...concurrency.progress import progress_bar
 from ...concurrency.ray_cluster import connect_ray
 from ...formats.atomic_files import write_atomically, write_csv, write_text_atomically
-from ..evaluation.comparison import make_actor, policy_name
+from ..evaluation.comparison import plan_means, plan_of, play_on_world, policy_name
 from ..evaluation.directions import better_side, format_number
-from ..evaluation.episodes import info_options, nanmean, play_episodes
-from ..evaluation.intervals import difference_interval, measure_interval
+from ..evaluation.episodes import nanmean
+from ..evaluation.intervals import PairedDifference, measure_interval, plan_bootstrap
 from ..evaluation.loop_order import LOOP_ORDER_KEY
 from ..evaluation.robot_time import TRACE, read_together, trace_rows, without_traces
 from .config import AgentConfig
-from .evaluate import EVALUATION_SEED, evaluate_model
+from .evaluate import EVALUATION_SEED, TrainedAgent, run_episodes
 from .run_folders import RunError, RunFolder, RunStart
-from .train import make_agent_env, set_torch_threads, train
+from .train import set_torch_threads, train
 
 #: Ground-truth columns of the benchmark table, with their labels.
 TABLE_COLUMNS = {
@@ -44,6 +45,7 @@ TABLE_COLUMNS = {
     "wall_consistency": "wall consistency",
     "ate": "ATE (m)",
     "coverage": "coverage",
+    "building_accuracy": "building accuracy (unmapped counts as wrong)",
     "reached_target": "reached the coverage target",
     "sim_steps_to_target": "simulator steps to the target",
     "revisit_share": "decisions that went back to a revisit target",
@@ -58,8 +60,9 @@ class Job:
     the model ``init_from``, if given, with ``allow_no_training`` as ``train``'s), or play the baseline
     ``policy`` named ``variant`` (kind "baseline": a scripted policy's name, or a
     :class:`~emmi_gym.tools.training.evaluate.TrainedAgent` such as a shipped agent); then evaluate on the
-    ``episodes`` held-out episodes (none: trained only), keeping each episode's trace for the comparison at
-    equal robot time."""
+    held-out episodes of :func:`~emmi_gym.tools.training.evaluate.run_episodes` (``episodes`` plans of a
+    map set, each with ``seeds_per_plan`` seeds from ``episode_seed``; none: trained only), keeping each
+    episode's trace for the comparison at equal robot time."""
 
     kind: str
     variant: str
@@ -71,6 +74,7 @@ class Job:
     init_from: Path | None = None
     allow_no_training: bool = False
     policy: object = None
+    seeds_per_plan: int = 1
 
 
 def run_job(job: Job) -> dict:
@@ -90,22 +94,30 @@ def run_job(job: Job) -> dict:
             if result.interrupted:  # its checkpoint is kept for the next run of the benchmark, never evaluated
                 raise KeyboardInterrupt
             model_path = result.model_path
-        rows = evaluate_model(model_path, job.episodes, job.episode_seed, keep_trace=True) if job.episodes else []
+        rows = evaluation_rows(job, TrainedAgent(str(model_path), job.variant))
         evaluations = folder.ground_truth_path
         if evaluations.exists():  # none when training stopped before the first periodic evaluation
             with open(evaluations) as f:
                 curve = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
     else:
         trained = False
-        env = make_agent_env(job.config.env_id, {**job.config.eval_env_kwargs, **info_options(keep_trace=True)})
-        try:
-            rows = play_episodes(env, make_actor(job.policy), range(job.episode_seed, job.episode_seed + job.episodes),
-                                 keep_trace=True)
-        finally:
-            env.close()
-    for row in rows:
-        row.update(kind=job.kind, variant=job.variant, seed=job.seed)
+        rows = evaluation_rows(job, job.policy)
     return {"job": job, "rows": rows, "curve": curve, "trained": trained, "wall_seconds": time.perf_counter() - started}
+
+
+def evaluation_rows(job: Job, policy) -> list[dict]:
+    """The job's evaluation episodes of ``policy`` (a scripted policy's name or a trained agent), played one after
+    the other (the jobs are the parallelism) with their traces: rows of
+    :func:`~emmi_gym.tools.evaluation.comparison.play_on_world` whose ``seed`` is the job's (the agent's training
+    seed; 0 for a baseline) and ``episode_seed`` the episode's, with the job's ``kind`` and ``variant``."""
+    settings, episodes = run_episodes(job.config, episodes=job.episodes, seed=job.episode_seed,
+                                      seeds_per_plan=job.seeds_per_plan)
+    rows = []
+    for world, seed in episodes:
+        row = play_on_world(world, seed, policy, settings, keep_trace=True)
+        del row["policy"]
+        rows.append({**row, "episode_seed": row["seed"], "kind": job.kind, "variant": job.variant, "seed": job.seed})
+    return rows
 
 
 def run_state(job: Job) -> str:
@@ -135,15 +147,17 @@ def run_state(job: Job) -> str:
 
 def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir,
               init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED,
-              rollout_workers: bool = False, train_only: bool = False) -> list[Job]:
+              rollout_workers: bool = False, train_only: bool = False, seeds_per_plan: int = 1) -> list[Job]:
     """The agents (one per reward and seed, trained with ``dummy`` vectorisation: the jobs run in
     parallel already; with ``rollout_workers``, each agent's envs in rollout workers instead, one process
     per env, for a machine with more cores than agents; policy lag 0 either way; each from the weights of the
     model ``init_from``, if given, as ``train --init-from``) and one job per baseline (a scripted policy's
-    name, or a trained agent: :class:`~emmi_gym.tools.training.evaluate.TrainedAgent`, checked to act in the
-    benchmark's evaluation env); every job is evaluated on the ``episodes`` held-out episodes seeded from
-    ``eval_seed``. With ``train_only``, the agents alone, evaluated on none: a sitting of a budget spread over
-    several, the last of which evaluates every agent and baseline once."""
+    name, or a trained agent: :class:`~emmi_gym.tools.training.evaluate.TrainedAgent`, checked to act in
+    the benchmark's evaluation env); every job is evaluated on the same held-out episodes: on a map set its
+    first ``episodes`` plans, each with ``seeds_per_plan`` seeds from ``eval_seed`` on (elsewhere ``episodes``
+    seeds; :func:`~emmi_gym.tools.training.evaluate.run_episodes`). With ``train_only``, the agents alone,
+    evaluated on none: a sitting of a budget spread over several, the last of which evaluates every agent and
+    baseline once."""
     from ..policies import POLICY_NAMES
 
     out = Path(out_dir)
@@ -163,6 +177,10 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
     for baseline in baselines:
         if not isinstance(baseline, str):
             baseline.check_plays_in(config, "--baselines")
+    try:
+        run_episodes(config, episodes=episodes, seed=eval_seed, seeds_per_plan=seeds_per_plan)
+    except ValueError as error:
+        raise ValueError(f"--seeds-per-plan: {error} ({config.source}'s evaluation env)") from None
     jobs = []
     for reward in rewards:
         for seed in seeds:
@@ -170,11 +188,13 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
                             total_timesteps=int(timesteps), vec_env="workers" if rollout_workers else "dummy",
                             policy_lag=0)
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}",
-                            0 if train_only else episodes, eval_seed, init_from, allow_no_training))
+                            0 if train_only else episodes, eval_seed, init_from, allow_no_training,
+                            seeds_per_plan=seeds_per_plan))
     if train_only:
         return jobs
     for name, baseline in zip(names, baselines, strict=True):
-        jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, eval_seed, policy=baseline))
+        jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, eval_seed, policy=baseline,
+                        seeds_per_plan=seeds_per_plan))
     return jobs
 
 
@@ -206,15 +226,17 @@ def _ray(jobs: list[Job], address: str, progress: bool) -> list[dict]:
 def run_benchmark(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int, baselines, out_dir, *,
                   workers: int | None = None, ray_address: str | None = None, progress: bool = True,
                   init_from=None, allow_no_training: bool = False, eval_seed: int = EVALUATION_SEED,
-                  rollout_workers: bool = False, train_only: bool = False, report=None) -> list[dict]:
+                  rollout_workers: bool = False, train_only: bool = False, seeds_per_plan: int = 1,
+                  report=None) -> list[dict]:
     """Every job of :func:`make_jobs`, locally or on Ray; results sorted by kind, variant and seed.
     ``init_from`` (a model every agent starts from, as ``train``'s) and the run folders (:func:`run_state`)
     are checked before any job starts; ``rollout_workers``: each agent's envs in rollout workers;
-    ``train_only``: the agents trained, nothing evaluated (:func:`make_jobs`); ``report``: called with a
+    ``train_only``: the agents trained, nothing evaluated; ``seeds_per_plan``: the seeds each plan is played with
+    (:func:`make_jobs`); ``report``: called with a
     sentence saying where the agents start and how many decisions each will train."""
     init_from = None if init_from is None else Path(init_from)
     jobs = make_jobs(config, rewards, seeds, timesteps, episodes, baselines, out_dir, init_from, allow_no_training,
-                     eval_seed, rollout_workers, train_only)
+                     eval_seed, rollout_workers, train_only, seeds_per_plan)
     agents = [job for job in jobs if job.kind == "agent"]
     if init_from is not None and agents:
         start = RunFolder.check_init_from(init_from, agents[0].config, allow_no_training)
@@ -257,35 +279,40 @@ def _agent_means(rows: list[dict], column: str, value=lambda row, column: row.ge
 def summary(rows: list[dict]) -> dict[str, dict[str, tuple]]:
     """Per variant and column of the episode ``rows`` (as ``benchmark_episodes.csv`` holds them): mean [95%
     interval]. For trained variants each agent's episode mean is one sample (the interval is over training
-    seeds); for a baseline (scripted or a shipped agent), each episode is."""
+    seeds); for a baseline (scripted or a shipped agent), each plan's mean over its seeds is (on one world, each
+    episode)."""
     table = {}
     for variant in dict.fromkeys(row["variant"] for row in rows):
         own = [row for row in rows if row["variant"] == variant]
         agent = own[0]["kind"] == "agent"
-        entry = {column: measure_interval(_agent_means(own, column) if agent else
-                                          [row.get(column, math.nan) for row in own], column)
+        entry = {column: measure_interval(_agent_means(own, column) if agent else plan_means(own, column), column)
                  for column in TABLE_COLUMNS}
         entry["agents"] = len({row["seed"] for row in own}) if agent else 0
         table[variant] = entry
     return table
 
 
-#: Columns of the paired comparison of each trained variant with each baseline: of the final maps, and at
-#: equal robot time (each pair read at the robot time the shorter episode took).
-PAIRED_COLUMNS = ("ate", "oracle_accuracy", "sim_steps", LOOP_ORDER_KEY)
-EQUAL_TIME_COLUMNS = ("ate", "oracle_accuracy", "wall_consistency", "coverage", "sim_steps")
+#: Columns of the paired comparison of each trained variant with each baseline: of the final maps (with the robot
+#: time they took), and at equal robot time (each pair read at the robot time the shorter episode took, with the
+#: coverage and the building accuracy, which count what is not mapped yet).
+PAIRED_COLUMNS = ("ate", "oracle_accuracy", "building_accuracy", "sim_steps", LOOP_ORDER_KEY)
+EQUAL_TIME_COLUMNS = ("ate", "oracle_accuracy", "wall_consistency", "coverage", "building_accuracy", "sim_steps")
 
 
-def paired_with(rows: list[dict], baseline: str, *, equal_robot_time: bool = False) -> dict[str, dict[str, tuple]]:
-    """Each trained variant minus ``baseline`` on the same held-out episodes: each agent's mean of its paired
-    differences (episode by episode) is one sample; mean [95% t-interval] over the agents. With
-    ``equal_robot_time`` (rows with traces), each pair of episodes is read at the robot time the shorter took
-    (:func:`~emmi_gym.tools.evaluation.robot_time.read_together`); ``sim_steps`` is then that time, the
-    agent's own, not a difference."""
-    theirs = {row["episode_seed"]: row for row in rows if row["kind"] == "baseline" and row["variant"] == baseline}
+def paired_with(rows: list[dict], baseline: str, *, equal_robot_time: bool = False) -> dict[str, dict]:
+    """Each trained variant minus ``baseline`` on the same held-out episodes, paired by (world, episode seed): the
+    mean over the variant's agents and the plans, with its 95% interval by a paired bootstrap that resamples
+    the plans (each with all its seeds) and, where the variant has several agents, the agents
+    (:func:`~emmi_gym.tools.evaluation.intervals.plan_bootstrap`: a ``PairedDifference``, with the smallest
+    difference it detects). With ``equal_robot_time`` (rows with traces), each pair of episodes is read at the
+    robot time the shorter took (:func:`~emmi_gym.tools.evaluation.robot_time.read_together`); ``sim_steps`` is
+    then that time, the agent's own, not a difference: mean [95% t-interval] over the agents, as :func:`summary`
+    gives."""
+    theirs = {(row.get("world"), row["episode_seed"]): row for row in rows
+              if row["kind"] == "baseline" and row["variant"] == baseline}
 
     def difference(row, column):
-        other = theirs.get(row["episode_seed"])
+        other = theirs.get((row.get("world"), row["episode_seed"]))
         if other is None:
             return math.nan
         if not equal_robot_time:
@@ -296,26 +323,41 @@ def paired_with(rows: list[dict], baseline: str, *, equal_robot_time: bool = Fal
     table = {}
     for variant in dict.fromkeys(row["variant"] for row in rows if row["kind"] == "agent"):
         own = [row for row in rows if row["variant"] == variant and (TRACE in row or not equal_robot_time)]
-        table[variant] = {column: (measure_interval if equal_robot_time and column == "sim_steps" else
-                                   difference_interval)(_agent_means(own, column, difference), column)
-                          for column in (EQUAL_TIME_COLUMNS if equal_robot_time else PAIRED_COLUMNS)}
+        table[variant] = {
+            column: measure_interval(_agent_means(own, column, difference), column)
+            if equal_robot_time and column == "sim_steps" else
+            plan_bootstrap([difference(row, column) for row in own], [plan_of(row) for row in own], column,
+                           agents=[row["seed"] for row in own], episodes=[row["episode_seed"] for row in own])
+            for column in (EQUAL_TIME_COLUMNS if equal_robot_time else PAIRED_COLUMNS)}
     return table
+
+
+def _measured(entry) -> int:
+    """How many values an interval of :func:`summary` or :func:`paired_with` stands on (agents, plans)."""
+    return entry.plans if isinstance(entry, PairedDifference) else entry[3]
 
 
 def measured_columns(table: dict, columns=tuple(TABLE_COLUMNS)) -> list[str]:
     """The ``columns`` that some variant of a :func:`summary` has a value for (the loop order only on
     the loop worlds, the revisit share only in waypoint mode)."""
-    return [c for c in columns if any(entry[c][3] > 0 for entry in table.values())]
+    return [c for c in columns if any(_measured(entry[c]) > 0 for entry in table.values())]
 
 
-def _cell(interval: tuple, column: str, signed: bool = False) -> str:
-    mean, low, high, n = interval
+def _cell(interval, column: str, signed: bool = False) -> str:
+    """An interval of :func:`summary` (``(mean, low, high, n)``) or a ``PairedDifference`` of :func:`paired_with`
+    (with its plans and the smallest difference it detects) as a table cell."""
+    if isinstance(interval, PairedDifference):
+        mean, low, high, n = interval.mean, interval.low, interval.high, interval.plans
+        counted = f"n={n}; detects {format_number(interval.detectable, column)}"
+    else:
+        mean, low, high, n = interval
+        counted = f"n={n}"
     if n == 0:
         return "n/a"
-    if n == 1:  # one agent: no interval
+    if n == 1:  # one agent or plan: no interval
         return f"{format_number(mean, column, signed)} (n=1)"
     return (f"{format_number(mean, column, signed)} [{format_number(low, column, signed)}, "
-            f"{format_number(high, column, signed)}] (n={n})")
+            f"{format_number(high, column, signed)}] ({counted})")
 
 
 def _heading(column: str) -> str:
@@ -337,14 +379,19 @@ def markdown(rows: list[dict], header: str) -> str:
     traced = any(TRACE in row for row in rows)
     for baseline in dict.fromkeys(row["variant"] for row in rows if row["kind"] == "baseline"):
         lines += _paired_table(paired_with(rows, baseline), baseline,
-                               f"Paired with {baseline} on the same episodes (agent minus {baseline}; mean [95% "
-                               "t-interval] over the agents of each agent's mean difference):")
+                               f"Paired with {baseline} on the same episodes, final maps (agent minus {baseline}, "
+                               "paired by plan and seed; mean over the agents and plans [95% interval of a paired "
+                               "bootstrap that resamples the plans, each with all its seeds, and the agents]; "
+                               "'detects': the smallest difference this protocol finds with 80% power, 2.8 bootstrap "
+                               "standard errors; the robot time each took beside them):")
         if traced:
             lines += _paired_table(
                 paired_with(rows, baseline, equal_robot_time=True), baseline,
                 f"At equal robot time with {baseline}: each pair of episodes read at the robot time the shorter "
                 f"of the two took (the longer one's scores linear between its decisions), agent minus {baseline} "
-                f"as above; robot time: that time (the mean over agents of their mean), not a difference:",
+                f"as above, with the coverage and the building accuracy, which count what is not mapped yet (the "
+                f"oracle accuracy and the ATE judge only what was); robot time: that time (the mean over agents of "
+                f"their mean), not a difference:",
                 time_column="sim_steps")
     return "\n".join(lines) + "\n"
 
@@ -355,7 +402,7 @@ def _paired_table(paired: dict, baseline: str, title: str, time_column: str | No
     if not paired:
         return []
     columns = next(iter(paired.values())).keys()
-    shown = [c for c in columns if any(entry[c][3] > 0 for entry in paired.values())]
+    shown = [c for c in columns if any(_measured(entry[c]) > 0 for entry in paired.values())]
     lines = ["", title, "", "| variant | " + " | ".join(_heading(c) for c in shown) + " |",
              "| --- |" + " --- |" * len(shown)]
     for variant, entry in paired.items():

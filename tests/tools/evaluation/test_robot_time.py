@@ -1,6 +1,8 @@
 """Map quality at equal robot time: each episode's trace of scores after every decision, and two episodes of the
 same world and seed read at the robot time the shorter took."""
 
+import math
+
 import pytest
 
 from emmi_gym.tools.evaluation.comparison import ComparisonSettings, make_actor, markdown_table, play_on_world
@@ -21,8 +23,9 @@ SMALL = ComparisonSettings("emmi_gym/Explore-v1", {"particles": 3, "generator": 
                                                    "max_decisions": 4})
 
 
-def point(time, accuracy, ate=0.0):
-    return {"sim_steps": time, "oracle_accuracy": accuracy, "ate": ate, "wall_consistency": 1.0, "coverage": 0.5}
+def point(time, accuracy, ate=0.0, coverage=0.5, building=0.45):
+    return {"sim_steps": time, "oracle_accuracy": accuracy, "ate": ate, "wall_consistency": 1.0, "coverage": coverage,
+            "building_accuracy": building}
 
 
 def test_a_score_between_two_decisions_is_linear_between_them_and_past_the_end_the_final_one():
@@ -38,7 +41,8 @@ def test_two_episodes_are_read_at_the_shorter_ones_end():
     long = {"world": "w", "seed": 1, "policy": "closer", TRACE: [point(0, 1.0, 0.0), point(100, 0.8, 0.4),
                                                                  point(400, 0.95, 0.1)]}
     mine, theirs = read_together(short, long)
-    assert mine == {"sim_steps": 200, "oracle_accuracy": 0.9, "ate": 0.2, "wall_consistency": 1.0, "coverage": 0.5}
+    assert mine == {"sim_steps": 200, "oracle_accuracy": 0.9, "ate": 0.2, "wall_consistency": 1.0, "coverage": 0.5,
+                    "building_accuracy": 0.45}
     assert theirs["sim_steps"] == 200 and theirs["oracle_accuracy"] == pytest.approx(0.85)
     assert theirs["ate"] == pytest.approx(0.3)
     other_seed = {**long, "seed": 2}
@@ -46,6 +50,33 @@ def test_two_episodes_are_read_at_the_shorter_ones_end():
     assert [(r["policy"], r["seed"]) for r in read] == [("agent", 1), ("closer", 1)]  # seed 2 has no pair
     table = markdown_table(read, "agent", "closer", "agent - closer")
     assert "1 pairs" in table and "| accuracy against the oracle map | higher | 0.850" in table
+
+
+def test_at_equal_robot_time_mapping_less_is_not_read_as_mapping_better():
+    """An agent that stops early having explored little keeps a high oracle accuracy and a low ATE on the little it
+    mapped; read at its end, the planner that explored more looks worse on those, and the coverage and the building
+    accuracy (unmapped cells counting as wrong) in the same table say what the agent left out."""
+    rows = []
+    for plan in ("a", "b", "c"):
+        rows += [{"world": plan, "plan": plan, "seed": 1, "policy": "agent",
+                  TRACE: [point(0, 1.0), point(1000, 0.95, 0.1, coverage=0.6, building=0.55)]},
+                 {"world": plan, "plan": plan, "seed": 1, "policy": "planner",
+                  TRACE: [point(0, 1.0), point(1000, 0.9, 0.3, coverage=0.8, building=0.7),
+                          point(2000, 0.9, 0.3, coverage=0.95, building=0.85)]}]
+    read = at_equal_robot_time(rows, "agent", "planner")
+    assert {r["plan"] for r in read} == {"a", "b", "c"}  # the plans stay with the rows read
+    table = markdown_table(read, "agent", "planner", "agent - planner at equal robot time")
+    lines = {line.split(" | ")[0].strip("| "): line for line in table.splitlines() if line.startswith("| ")}
+    assert "+0.050" in lines["accuracy against the oracle map"] and "-0.200" in lines["ATE (m)"]
+    assert "-0.200" in lines["coverage"] and "-0.150" in lines["building accuracy (unmapped counts as wrong)"]
+    assert "3 pairs (world, seed) on 3 plans" in table
+
+
+def test_a_trace_file_without_a_score_gives_it_as_nan():
+    points = [{"world": "w", "seed": 1, "policy": "agent", **{k: v for k, v in point(t, 0.9).items()
+                                                              if k != "building_accuracy"}} for t in (0, 100)]
+    (row,) = with_traces([{"world": "w", "seed": 1, "policy": "agent"}], points)
+    assert row[TRACE][1]["oracle_accuracy"] == 0.9 and math.isnan(row[TRACE][1]["building_accuracy"])
 
 
 def test_an_episodes_trace_starts_at_the_reset_and_ends_at_its_final_scores():

@@ -3,10 +3,9 @@ pairs on that side ("A better"), never merely "A higher"; numbers are written al
 
 import math
 
-from emmi_gym.tools.evaluation.comparison import markdown_table
+from emmi_gym.tools.evaluation.comparison import format_table, markdown_table
 from emmi_gym.tools.evaluation.directions import BETTER, HIGHER, better_side
 from emmi_gym.tools.experiments.report import SUMMARY_COLUMNS, markdown_summary
-from emmi_gym.tools.training.evaluate import format_table
 from emmi_gym.tools.training.reward_benchmark import markdown
 
 
@@ -50,7 +49,7 @@ def test_the_comparison_counts_the_policy_better_on_each_side():
         rows.append({"world": "w", "seed": seed, "policy": "agent", "ate": 0.3 + 0.3 * (seed == 2),
                      "oracle_accuracy": 0.85, "coverage": 0.9, "sim_steps": 1118.0})
     table = markdown_table(rows, "agent", "frontier", "t")
-    assert "| score | better | frontier | agent | agent - frontier | agent better |" in table
+    assert "| score | better | frontier | agent | agent - frontier | detectable | agent better |" in table
     assert _row_cells(table, "ATE (m)")[1] == "lower" and _row_cells(table, "ATE (m)")[-1] == "2/3"
     assert _row_cells(table, "accuracy against the oracle map")[-1] == "3/3"
     assert _row_cells(table, "coverage")[-1] == "0/3 (3 tied)"  # ties are neither better nor worse

@@ -157,3 +157,14 @@ def test_a_shipped_agent_named_as_a_baseline_plays_its_model():
                                                             "explore_plans_emmi")
     with pytest.raises(ValueError, match=r"--baselines: unknown \['nearest'\]; choose scripted .* or shipped agents"):
         baseline_policies(["nearest"])
+
+
+def test_the_tables_formatter_is_the_evaluations_and_its_old_name_warns():
+    from emmi_gym.tools.evaluation import comparison
+    from emmi_gym.tools.training import evaluate
+
+    with pytest.warns(FutureWarning, match=r"training\.evaluate\.format_table is now emmi_gym\.tools\.evaluation"
+                                           r"\.comparison\.format_table; the old name goes in emmi-gym 0\.5\.0"):
+        assert evaluate.format_table is comparison.format_table
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        _ = evaluate.no_such_name

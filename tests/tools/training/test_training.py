@@ -602,7 +602,8 @@ def _tiny_benchmark(tmp_path, **kwargs):
 def test_benchmark_summary_pairs_each_agent_with_the_baselines_on_the_same_episodes():
     """Two agents of one reward on episodes 10-12 beside a baseline: the summary's share of episodes that closed
     the loop first is the agents' mean share (not the share of agents with any), and the paired table gives
-    each agent's mean episode-by-episode difference, averaged over the agents."""
+    the mean of the episode-by-episode differences over the agents and the episodes (on one world, the units of
+    its interval)."""
     from emmi_gym.tools.training.reward_benchmark import markdown, paired_with, summary
 
     def row(kind, variant, seed, episode, ate, first):
@@ -615,8 +616,9 @@ def test_benchmark_summary_pairs_each_agent_with_the_baselines_on_the_same_episo
     share, low, high, n = summary(rows)["emmi"][LOOP_ORDER_KEY]
     assert (share, n) == (pytest.approx(0.5), 2) and low < 0.5 < high
     paired = paired_with(rows, "explore_first")["emmi"]
-    assert paired["ate"][0] == pytest.approx(-0.2) and paired["ate"][3] == 2
-    assert paired["sim_steps"][:2] == (pytest.approx(0.0), pytest.approx(0.0))
+    assert paired["ate"].mean == pytest.approx(-0.2) and paired["ate"].plans == 3
+    assert paired["ate"].low < -0.2 < paired["ate"].high  # the two agents' gap: drawn with the episodes
+    assert (paired["sim_steps"].mean, paired["sim_steps"].high) == (pytest.approx(0.0), pytest.approx(0.0))
     assert "| emmi - explore_first | -0.200 [" in markdown(rows, "t")
 
 
@@ -626,22 +628,50 @@ def test_benchmark_pairs_the_agents_with_the_baselines_at_equal_robot_time():
     from emmi_gym.tools.evaluation.robot_time import TRACE
     from emmi_gym.tools.training.reward_benchmark import markdown, paired_with
 
-    def row(kind, variant, seed, episode, end, accuracy, ate):
-        start = {"sim_steps": 0.0, "oracle_accuracy": 1.0, "ate": 0.0, "wall_consistency": 1.0, "coverage": 0.2}
-        final = {"sim_steps": end, "oracle_accuracy": accuracy, "ate": ate, "wall_consistency": 0.8, "coverage": 0.9}
+    def row(kind, variant, seed, episode, end, accuracy, ate, building):
+        start = {"sim_steps": 0.0, "oracle_accuracy": 1.0, "ate": 0.0, "wall_consistency": 1.0, "coverage": 0.2,
+                 "building_accuracy": 0.1}
+        final = {"sim_steps": end, "oracle_accuracy": accuracy, "ate": ate, "wall_consistency": 0.8, "coverage": 0.9,
+                 "building_accuracy": building}
         return {"kind": kind, "variant": variant, "seed": seed, "episode_seed": episode, **final,
                 TRACE: [start, final]}
 
-    rows = [row("baseline", "closer", 0, e, 1000.0, 0.9, 0.5) for e in (10, 11)]
-    rows += [row("agent", "emmi", seed, e, 500.0, 0.8, 0.3) for seed in (0, 1) for e in (10, 11)]
+    rows = [row("baseline", "closer", 0, e, 1000.0, 0.9, 0.5, 0.9) for e in (10, 11)]
+    rows += [row("agent", "emmi", seed, e, 500.0, 0.8, 0.3, 0.4) for seed in (0, 1) for e in (10, 11)]
     final = paired_with(rows, "closer")["emmi"]
-    assert final["oracle_accuracy"][0] == pytest.approx(-0.1) and final["sim_steps"][0] == pytest.approx(-500)
+    assert final["oracle_accuracy"].mean == pytest.approx(-0.1) and final["sim_steps"].mean == pytest.approx(-500)
     equal = paired_with(rows, "closer", equal_robot_time=True)["emmi"]
-    assert equal["oracle_accuracy"][0] == pytest.approx(0.8 - 0.95) and equal["ate"][0] == pytest.approx(0.3 - 0.25)
-    assert equal["coverage"][0] == pytest.approx(0.9 - 0.55) and equal["sim_steps"][0] == 500.0
+    assert equal["oracle_accuracy"].mean == pytest.approx(0.8 - 0.95)
+    assert equal["ate"].mean == pytest.approx(0.3 - 0.25)
+    assert equal["coverage"].mean == pytest.approx(0.9 - 0.55) and equal["sim_steps"][0] == 500.0
+    assert equal["building_accuracy"].mean == pytest.approx(0.4 - 0.5)  # the baseline halfway: 0.1 to 0.9
+    assert final["building_accuracy"].mean == pytest.approx(0.4 - 0.9)
     summary = markdown(rows, "t")
     assert "At equal robot time with closer" in summary
-    assert "| emmi - closer | +0.050 [+0.050, +0.050] (n=2) | -0.150 [" in summary
+    assert "| emmi - closer | +0.050 [+0.050, +0.050] (n=2; detects 0.000) | -0.150 [" in summary
+
+
+def test_benchmark_plays_each_plan_with_its_seeds_paired_across_policies(tmp_path):
+    """With two seeds per plan every job plays the first plans of the evaluation env's map set, each with the
+    same two episode seeds; the paired table pairs them per plan and seed and counts the plans as its units."""
+    from emmi_gym.tools.training.reward_benchmark import make_jobs, paired_with, run_job
+
+    config = parse_agent_config({"env": {"id": "emmi_gym/ExplorePlans-v1", "kwargs": {"particles": 3,
+                                                                                        "max_decisions": 1}},
+                                 "algorithm": "MaskablePPO", "policy": "MultiInputPolicy", "n_envs": 1,
+                                 "vec_env": "dummy", "total_timesteps": 16, "eval": {"freq": 0}})
+    jobs = make_jobs(config, [], range(0), 16, 2, ["frontier", "random"], tmp_path, eval_seed=50, seeds_per_plan=2)
+    rows = [row for job in jobs for row in run_job(job)["rows"]]
+    episodes = {variant: [(r["plan"], r["episode_seed"]) for r in rows if r["variant"] == variant]
+                for variant in ("frontier", "random")}
+    assert episodes["frontier"] == episodes["random"] and len(set(episodes["frontier"])) == 4
+    assert {seed for _, seed in episodes["frontier"]} == {50, 51} and len({p for p, _ in episodes["frontier"]}) == 2
+    as_agent = [{**r, "kind": "agent", "variant": "rnd"} if r["variant"] == "random" else r for r in rows]
+    paired = paired_with(as_agent, "frontier")["rnd"]
+    assert paired["building_accuracy"].plans == 2 and np.isfinite(paired["building_accuracy"].mean)
+    with pytest.raises(ValueError, match="--seeds-per-plan: 2 seeds per plan need a map set"):
+        make_jobs(parse_agent_config(config_dict("PPO", env_id="emmi_gym/Explore-v1")), [], range(0), 16, 2, [],
+                  tmp_path, seeds_per_plan=2)
 
 
 def test_benchmark_refuses_waypoint_baselines_in_velocity_mode(tmp_path):
