@@ -3,6 +3,7 @@ reports a partial agent nor relabels a budget, a resumed run is checked against 
 written, a rollout worker that stops or dies is a one-line error naming it with the run saved, SIGTERM stops
 a run as Ctrl-C does, and readers stay within their memory bounds."""
 
+import csv
 import multiprocessing as mp
 import os
 import shutil
@@ -199,8 +200,10 @@ def test_a_benchmark_sitting_with_train_only_trains_and_the_last_evaluates_once(
     assert not (tmp_path / "bench" / "benchmark_episodes.csv").exists()
     code, out, _ = cli(argv, capsys)
     assert code == 0 and "1 agent(s) trained by an earlier run" in out
-    rows = (tmp_path / "bench" / "benchmark_episodes.csv").read_text().splitlines()
-    assert len(rows) == 3 and {row.split(",")[-3] for row in rows[1:]} == {"agent", "baseline"}
+    with open(tmp_path / "bench" / "benchmark_episodes.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert sorted(row["kind"] for row in rows) == ["agent", "baseline"]
+    assert {row["episode_seed"] for row in rows} == {"1000000"}  # both played the same held-out episode
 
 
 @pytest.mark.slow
