@@ -160,7 +160,7 @@ def main() -> None:
              "learning (train())": SPENT["learning"]}
     parts["other (the learner's replay, checkpoints, logging)"] = max(0.0, wall - sum(parts.values()))
     for name, seconds in parts.items():
-        print(f"  {name}: {seconds:.1f} s ({100 * seconds / wall:.0f}%)")
+        print(f"  {name}: {seconds:.3f} s ({100 * seconds / wall:.0f}%)")
     learner = wall - waiting
     update = (learner - SPENT["evaluation"]) / decisions  # the evaluation is a schedule's choice (eval.freq 0)
     print(f"  the learner's share of the wall time: {100 * learner / wall:.0f}% "
