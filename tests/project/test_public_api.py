@@ -29,6 +29,7 @@ def test_the_shipped_agents_and_env_ids_are_where_users_find_them():
     assert "emmi_gym/ExplorePlans-v1" in gym.registry
 
 
+@pytest.mark.slow  # a fresh interpreter importing the tools: over 2 s
 def test_an_old_module_name_is_the_new_module_with_a_warning_naming_it():
     done = run_python("import warnings; warnings.simplefilter('always')\n"
                       "import emmi_gym.training.train as old\nimport emmi_gym.tools.training.train as new\n"
@@ -52,6 +53,7 @@ def test_importing_the_package_registers_the_ids_and_nothing_else():
     assert done.stdout.splitlines() == ["True", "[]", "True emmi_gym.tools.pretrained"]
 
 
+@pytest.mark.slow  # a fresh interpreter importing the tools: over 2 s
 def test_every_moved_module_and_name_is_the_new_one_with_a_warning_naming_it():
     """Each old name of :data:`emmi_gym._moved.MOVED` (and the loop-order functions that left the A/B module)
     imports the very module (function) it moved to, with one FutureWarning naming the new name and the release

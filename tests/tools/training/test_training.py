@@ -452,6 +452,7 @@ def test_an_llvmlite_object_the_interrupt_left_half_built_is_not_printed_when_it
     assert reported == [] and sys.unraisablehook is report  # not printed; the hook restored
 
 
+@pytest.mark.slow  # a fresh interpreter interrupted: over 2 s
 def test_a_ctrl_c_while_the_kernel_threads_start_does_not_hang_the_exit():
     """What made ``emmi-gym train`` hang now and then after SIGINT: a Ctrl-C that arrived while a kernel
     thread was starting (``Thread.start`` waits for it) left a worker that the interpreter waited for
