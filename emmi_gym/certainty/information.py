@@ -10,7 +10,6 @@ import functools
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
 from . import _kernels
 
@@ -83,6 +82,8 @@ def observed_halfwidth(max_bits: float) -> float:
     |p - 0.5|, so a cell is observed (eq. 10) about when it lies farther than this from 0.5."""
     if max_bits >= 1.0:
         return 0.0
+    from scipy.optimize import brentq  # here, not at the top: scipy.optimize takes 0.6 s to import
+
     return brentq(lambda d: float(cell_entropy(0.5 + d)) - max_bits, 0.0, 0.5, xtol=1e-15)
 
 

@@ -32,7 +32,6 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, PngImagePlugin, PpmImagePlugin
 from scipy import ndimage
-from skimage.measure import approximate_polygon, find_contours
 
 from ..inputs.errors import excerpt
 from ..inputs.user_paths import input_file
@@ -311,6 +310,9 @@ def boundary_edges(region: np.ndarray, chunk: int = 1024) -> int:
 
 def boundary_walls(region: np.ndarray, res: float, x0: float, y0: float) -> np.ndarray:
     """(K, 5) walls half a pixel thick along the boundary of a boolean region (rows = y up), simplified."""
+    # here, not at the top: skimage.measure pulls in scipy.signal and scipy.stats (1 s to import)
+    from skimage.measure import approximate_polygon, find_contours
+
     padded = np.pad(region, 1).view(np.uint8)  # find_contours reads it as float64 (a copy of its own)
     thickness = res / 2
     rows = []
