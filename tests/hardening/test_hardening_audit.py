@@ -15,6 +15,7 @@ from hardening_audit import (
     _png,
     _zip_with_huge_member,
     cases,
+    compile_filter_kernels,
     run_case,
     run_probe,
 )
@@ -32,6 +33,7 @@ HANDLED = {"1.0e1 in a world file": "ok: box", "log driving straight along an ax
 
 @pytest.fixture(scope="module")
 def audit_cases(tmp_path_factory):
+    compile_filter_kernels()  # the cases' 60 s are for their inputs, not for numba compiling on a cold cache
     return dict(cases(tmp_path_factory.mktemp("cases")))
 
 
