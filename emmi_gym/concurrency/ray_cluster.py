@@ -10,6 +10,7 @@ import socket
 import sys
 import threading
 import warnings
+from types import MappingProxyType
 from urllib.parse import urlsplit
 
 from ..inputs.extras import missing_extra
@@ -26,7 +27,8 @@ SINGLE_MACHINE_VARIABLE = ("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 #: above its raylet's (``worker_niceness``, in Ray's ``ray_config_def.h``), so that on a shared cluster node its
 #: own daemons stay responsive; a local instance is this process's own work, so its workers run at this process's
 #: priority (beside two busy loops on two cores, an actor got 7% of a core at Ray's default, 35% at ours).
-LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0}
+#: Read-only: Ray adds its own keys to the dict it is given, so each start gets a copy.
+LOCAL_SYSTEM_CONFIG = MappingProxyType({"worker_niceness": 0})
 
 
 def public_host(address: str) -> str | None:

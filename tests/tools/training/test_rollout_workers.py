@@ -171,7 +171,7 @@ def test_a_two_node_ray_cluster_gives_the_same_rollouts_as_processes(ray, ray_fi
     from ray.cluster_utils import Cluster
 
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False,
-                                                            "_system_config": LOCAL_SYSTEM_CONFIG})
+                                                            "_system_config": dict(LOCAL_SYSTEM_CONFIG)})
     try:
         cluster.add_node(num_cpus=1)
         ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
