@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from emmi_gym.concurrency.ray_cluster import LOOPBACK, ray_init_arguments
+from emmi_gym.concurrency.ray_cluster import LOCAL_SYSTEM_CONFIG, LOOPBACK, ray_init_arguments
 
 
 def test_a_local_ray_instance_is_started_on_the_loopback_address_without_a_dashboard():
@@ -16,6 +16,14 @@ def test_a_local_ray_instance_is_started_on_the_loopback_address_without_a_dashb
     assert ray_init_arguments(None, {}) == local  # no RAY_ADDRESS: a local instance, as --ray without an address
     assert ray_init_arguments("local", {"RAY_ADDRESS": "10.0.0.2:6379"}) == local
 
+
+
+def test_what_ray_adds_to_a_system_config_reaches_neither_the_default_nor_the_next_start():
+    first = ray_init_arguments("local", {})
+    first["_system_config"]["automatic_object_spilling_enabled"] = True  # as ray.init fills in the dict it gets
+    assert ray_init_arguments("local", {})["_system_config"] == {"worker_niceness": 0}
+    with pytest.raises(TypeError):  # handed to Ray as it is, the default itself would take Ray's keys
+        LOCAL_SYSTEM_CONFIG["automatic_object_spilling_enabled"] = True
 
 def test_joining_a_cluster_leaves_its_addresses_to_it():
     joined = ray_init_arguments("10.0.0.2:6379", {})
