@@ -44,7 +44,6 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-import _arguments as arguments
 import gymnasium as gym
 import numpy as np
 from _timing import timed
@@ -217,7 +216,24 @@ def report(env_id: str, n_steps: int, repeats: int, options: dict, with_resets: 
     print("  ms per env step: " + ", ".join(f"{k} {1e3 * v / n_steps:.1f}" for k, v in spent.items()))
 
 
+def worker_command(argv: list[str]) -> None:
+    """The command line of :func:`worker`: ``--worker ENV_ID [--with-resets] [--threads N] [--options JSON]``,
+    read with nothing of this checkout but this file, since the worker may run older code (which has not
+    the argument types of ``_arguments``)."""
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--worker", required=True)
+    parser.add_argument("--with-resets", action="store_true")
+    parser.add_argument("--threads", type=int)
+    parser.add_argument("--options", default="{}")
+    args = parser.parse_args(argv)
+    if args.threads:
+        set_kernel_threads(args.threads)
+    worker(args.worker, args.with_resets, json.loads(args.options))
+
+
 def main() -> None:
+    import _arguments as arguments  # here, not in the workers: they may run older code
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--decisions", type=arguments.integer(1), default=60, help="env steps of each waypoint id")
     parser.add_argument("--velocity-steps", type=arguments.integer(1), default=10000,
@@ -233,12 +249,9 @@ def main() -> None:
                         "with that step (whole decisions, as training waits for them)")
     parser.add_argument("--threads", type=arguments.integer(1, 256), metavar="N",
                         help="threads of the kernels (default: one per core)")
-    parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.threads:
         set_kernel_threads(args.threads)
-    if args.worker:
-        return worker(args.worker, args.with_resets, json.loads(args.options))
     time_the_parts()
     from _options import checked, json_object  # here, not in the workers: they may run older code
 
@@ -259,4 +272,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:2] == ["--worker"]:
+        worker_command(sys.argv[1:])
+    else:
+        main()
