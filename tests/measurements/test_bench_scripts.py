@@ -5,6 +5,8 @@ bound); the methods it wraps to time them are put back after it."""
 import gzip
 import math
 import re
+import subprocess
+import sys
 
 import pytest
 import yaml
@@ -36,6 +38,19 @@ def test_bench_env_times_each_id_and_splits_a_step_into_parts_that_add_up():
 def test_bench_env_refuses_an_option_of_no_env_naming_it():
     done = run_script(MEASUREMENTS / "bench_env.py", "--ids", "Explore-v1", "--options", '{"particles": 0}')
     assert done.code == 2 and "--options: field 'particles': expected an integer in [1, 1000]" in done.err
+
+
+def test_bench_env_s_worker_imports_nothing_older_code_lacks():
+    """``--against DIR`` runs this script's worker on the code in DIR (``PYTHONPATH``), which may predate the
+    package's tools (``emmi_gym.tools``, where the scripts' argument types live): the worker must not import
+    them, or this checkout's would be mixed into the older package and the worker die on an import."""
+    done = subprocess.run([sys.executable, "-X", "importtime", str(MEASUREMENTS / "bench_env.py"), "--worker",
+                           "emmi_gym/Explore-v1", "--options", "{}"], stdin=subprocess.DEVNULL, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    imported = {line.rsplit("|", 1)[-1].strip() for line in done.stderr.splitlines() if line.startswith("import time")}
+    assert "emmi_gym.slam" in imported  # the worker did load the package it times
+    assert not {name for name in imported if name.startswith("emmi_gym.tools")}
 
 
 def test_bench_world_times_the_laser_and_a_step_on_each_kind_of_world():
