@@ -24,7 +24,11 @@ own env keywords.
 ``--paired-with POLICY`` adds each policy's return minus POLICY's on the same episodes, with its 95% interval.
 ``--episodes-from FILE ...`` reads the ``episodes.json`` of earlier runs (``--out``) instead of playing, pooled: an
 agent played later beside the policies played once (an episode two files hold must be the same in both); by
-default the rewards every step of them holds.
+default the rewards every step of them holds. ``--against-episodes FILE ...`` sets each agreement beside that of the
+same episodes played otherwise (another filter: ``--options`` of its ``slam``, another version) and gives the
+change with its interval, paired by plan: does a change to the filter make a reward see the better map?
+
+    python measurements/reward_returns.py --episodes-from after/episodes.json --against-episodes before/episodes.json
 
 ``--worlds`` takes map sets (a shipped set, a folder, a glob: their first ``--plans`` maps, each with
 every ``--seeds``) or worlds (names, files: one episode per seed). Choose on the train split; the
@@ -48,7 +52,9 @@ from emmi_gym.tools.evaluation.comparison import ComparisonSettings, compare_on,
 from emmi_gym.tools.experiments.reward_alignment import (
     QUALITIES,
     Discount,
+    agreement_change,
     alignment,
+    change_markdown,
     markdown,
     paired_markdown,
     paired_returns,
@@ -79,10 +85,13 @@ def main() -> None:
                         help="also each policy's return minus this policy's, paired by episode, with 95%% intervals")
     parser.add_argument("--episodes-from", nargs="+", type=Path, metavar="FILE",
                         help="episodes.json files of earlier runs, pooled, instead of playing")
+    parser.add_argument("--against-episodes", nargs="+", type=Path, metavar="FILE",
+                        help="episodes.json of the same episodes played otherwise (another filter, another version): "
+                             "each agreement beside theirs, and the change paired by plan")
     parser.add_argument("--out", type=Path, default=None, help="write summary.md and episodes.json here")
     args = parser.parse_args()
     if args.episodes_from:
-        rows = pooled_episodes(parser, args.episodes_from)
+        rows = pooled_episodes(parser, args.episodes_from, "--episodes-from")
         held = [name for name in REWARDS if all(name in step for row in rows for step in row["steps"])]
         missing = sorted(set(args.rewards or ()) - set(held))
         if missing:
@@ -136,6 +145,17 @@ def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: l
         except ValueError as error:
             parser.error(f"--paired-with: {error}")
         table += "\n\n" + paired_markdown(paired, args.paired_with, privileged)
+    if args.against_episodes:
+        baseline = pooled_episodes(parser, args.against_episodes, "--against-episodes")
+        missing = sorted({name for name in args.rewards for row in baseline for step in row["steps"]
+                          if name not in step})
+        if missing:
+            parser.error(f"--against-episodes: their steps do not hold {missing}")
+        try:
+            changes = agreement_change(rows, baseline, args.rewards, args.time_costs, discounts, tuple(QUALITIES))
+        except ValueError as error:
+            parser.error(f"--against-episodes: {error}")
+        table += "\n\n" + change_markdown(changes, ", ".join(map(str, args.against_episodes)))
     print(table)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -144,27 +164,27 @@ def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: l
         print(f"\nwrote {args.out / 'summary.md'} and {args.out / 'episodes.json'}")
 
 
-def pooled_episodes(parser: argparse.ArgumentParser, files: list[Path]) -> list[dict]:
+def pooled_episodes(parser: argparse.ArgumentParser, files: list[Path], option: str) -> list[dict]:
     """The episodes (with their steps) of earlier runs' ``episodes.json``, pooled; one (world, seed, policy) in two
-    files is kept once if the two are the same episode, and a usage error if they differ. A world is named as
-    :func:`~emmi_gym.world.map_sets.world_name` says, so that runs made from two installs pair."""
+    files is kept once if the two are the same episode, and a usage error (naming ``option``) if they differ. A world
+    is named as :func:`~emmi_gym.world.map_sets.world_name` says, so that runs made from two installs pair."""
     rows, seen = [], {}
     for path in files:
         try:
             episodes = json.loads(path.read_text())
         except OSError as error:
-            parser.error(f"--episodes-from: {path}: cannot be read ({error.strerror or error})")
+            parser.error(f"{option}: {path}: cannot be read ({error.strerror or error})")
         except (UnicodeDecodeError, json.JSONDecodeError) as error:
-            parser.error(f"--episodes-from: {path}: not an episodes.json of this script ({error})")
+            parser.error(f"{option}: {path}: not an episodes.json of this script ({error})")
         if not isinstance(episodes, list) or not all(isinstance(row, dict) and "steps" in row for row in episodes):
-            parser.error(f"--episodes-from: {path}: a list of episodes with their steps expected")
+            parser.error(f"{option}: {path}: a list of episodes with their steps expected")
         for row in episodes:
             if "world" in row:
                 row["world"] = world_name(row["world"])
             key = (row.get("world"), row.get("seed"), row.get("policy"))
             if key in seen:
                 if seen[key][1] != row:
-                    parser.error(f"--episodes-from: {path}: the episode {key} differs from the one in {seen[key][0]}")
+                    parser.error(f"{option}: {path}: the episode {key} differs from the one in {seen[key][0]}")
                 continue
             seen[key] = (path, row)
             rows.append(row)

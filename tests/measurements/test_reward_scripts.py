@@ -81,3 +81,21 @@ def test_reward_returns_reads_the_episodes_it_kept_to_the_same_tables(alignment,
     missing = run_script(MEASUREMENTS / "reward_returns.py", "--episodes-from", tmp_path / "episodes.json",
                          "--rewards", "coverage")
     assert missing.code == 2 and "--rewards: the steps of --episodes-from do not hold ['coverage']" in missing.err
+    against = run_script(MEASUREMENTS / "reward_returns.py", "--episodes-from", out / "episodes.json", "--rewards",
+                         "emmi", "coverage", "--discounts", "none", "--against-episodes", tmp_path / "episodes.json")
+    assert against.code == 2 and "--against-episodes: their steps do not hold ['coverage']" in against.err
+
+
+def test_reward_returns_sets_the_agreement_beside_that_of_the_same_episodes_played_otherwise(alignment, tmp_path):
+    done, out = alignment
+    itself = run_script(MEASUREMENTS / "reward_returns.py", "--episodes-from", out / "episodes.json", "--rewards",
+                        "emmi", "--discounts", "none", "--against-episodes", out / "episodes.json")
+    assert itself.code == 0, itself.err
+    changes = [row for row in markdown_rows(itself.out) if row[0] == "emmi" and len(row) == 9]
+    assert [(row[1], row[3]) for row in changes] == [
+        (cost, quality) for cost in ("0", "0.002") for quality in ("oracle_accuracy", "ate")]
+    assert all(row[5] == row[6] and row[7] == "+0 [+0, +0]" for row in changes)
+    (tmp_path / "broken.json").write_text("{")
+    broken = run_script(MEASUREMENTS / "reward_returns.py", "--episodes-from", out / "episodes.json",
+                        "--against-episodes", tmp_path / "broken.json")
+    assert broken.code == 2 and f"--against-episodes: {tmp_path / 'broken.json'}: not an episodes.json" in broken.err

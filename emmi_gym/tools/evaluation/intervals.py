@@ -149,3 +149,39 @@ def plan_bootstrap(differences, plans, measure: str, agents=None, episodes=None,
     width = hi - lo
     detectable = float((stats.norm.ppf((1 + confidence) / 2) + stats.norm.ppf(POWER)) * np.std(means, ddof=1))
     return PairedDifference(mean, float(max(low, -width)), float(min(high, width)), n_plans, detectable)
+
+
+def share_bootstrap(successes, trials, units, baseline=None, confidence: float = CONFIDENCE,
+                    resamples: int = RESAMPLES, seed: int = 0) -> PairedDifference:
+    """The share ``sum(successes) / sum(trials)`` over ``units`` (e.g. plans, each holding many pairs of episodes)
+    and its percentile interval by a bootstrap that draws the units with replacement, each with all its trials:
+    the pairs of one plan are not independent draws. ``successes[k]`` and ``trials[k]`` are unit ``units[k]``'s.
+
+    With ``baseline`` (``(successes, trials)`` of the same units under another condition: another filter, another
+    version), the share minus the baseline's, both taken on each resample's units (paired by unit). ``detectable``
+    as :func:`plan_bootstrap` states it; a resample without trials is left out."""
+    s, t = np.asarray(successes, dtype=float), np.asarray(trials, dtype=float)
+    b_s, b_t = (np.zeros_like(s), np.ones_like(t)) if baseline is None else \
+        (np.asarray(baseline[0], dtype=float), np.asarray(baseline[1], dtype=float))
+    if not len(s) == len(t) == len(units) == len(b_s) == len(b_t):
+        raise ValueError(f"{len(s)} successes, {len(t)} trials, {len(units)} units and {len(b_s)} and {len(b_t)} "
+                         "of the baseline: one each a unit")
+    if len(set(units)) != len(units):
+        raise ValueError("a unit is named twice: give each unit's successes and trials summed")
+
+    def shares(drawn):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = s[drawn].sum(axis=-1) / t[drawn].sum(axis=-1)
+            return share if baseline is None else share - b_s[drawn].sum(axis=-1) / b_t[drawn].sum(axis=-1)
+
+    n = len(s)
+    if n == 0 or t.sum() == 0 or b_t.sum() == 0:
+        return PairedDifference(math.nan, math.nan, math.nan, n, math.nan)
+    mean = float(shares(np.arange(n)))
+    if n < 2:
+        return PairedDifference(mean, mean, mean, n, math.nan)
+    drawn = shares(np.random.default_rng(seed).integers(n, size=(resamples, n)))
+    drawn = drawn[np.isfinite(drawn)]
+    low, high = np.quantile(drawn, [(1 - confidence) / 2, (1 + confidence) / 2])
+    detectable = float((stats.norm.ppf((1 + confidence) / 2) + stats.norm.ppf(POWER)) * np.std(drawn, ddof=1))
+    return PairedDifference(mean, float(low), float(high), n, detectable)

@@ -9,7 +9,9 @@ episode ended with:
 - the mean discounted return of each policy;
 - **agreement**: over every episode and every pair of policies whose final maps differ, the share
   of pairs where the policy with the better map (higher accuracy against the oracle map, lower
-  ATE) also earned the higher return;
+  ATE) also earned the higher return, with a 95% interval from a bootstrap that draws the plans with all their
+  pairs (the pairs of one plan are not independent: it explains half the variance of the final map); beside
+  another set of the same episodes (another filter: :func:`agreement_change`), the change, paired by plan;
 - **within-episode correlation**: Pearson's r between return and final map quality after
   subtracting each episode's mean over the policies (what varies between policies on the same
   plan, not between easy and hard plans);
@@ -36,7 +38,7 @@ from itertools import combinations
 
 import numpy as np
 
-from ..evaluation.intervals import mean_interval
+from ..evaluation.intervals import PairedDifference, mean_interval, share_bootstrap
 
 #: Final map qualities compared, each with the sign that makes higher better.
 QUALITIES = {"oracle_accuracy": 1.0, "ate": -1.0}
@@ -101,17 +103,40 @@ def _returns(episodes, variant: str, time_cost: float, discount: Discount) -> di
             for key, by_policy in episodes.items() for p, row in by_policy.items()}
 
 
-def _agreement(episodes, returns, quality: str) -> tuple[int, int]:
-    """(pairs where the better map earned more, pairs whose maps differ)."""
-    sign, agree, pairs = QUALITIES[quality], 0, 0
+def _units(episodes) -> dict:
+    """The bootstrap's unit of each episode key (world, seed): its world (a plan, with all its seeds), or where every
+    episode lies on one world, the episode itself (as :func:`~emmi_gym.tools.evaluation.intervals.plan_bootstrap`)."""
+    one_world = len({world for world, _ in episodes}) == 1
+    return {key: key if one_world else key[0] for key in episodes}
+
+
+def _agreement_by_unit(episodes, returns, quality: str) -> dict:
+    """For each unit (:func:`_units`), [pairs where the better map earned more, pairs whose maps differ]."""
+    sign, counts, units = QUALITIES[quality], {}, _units(episodes)
     for key, by_policy in episodes.items():
+        count = counts.setdefault(units[key], [0, 0])
         for p, q in combinations(sorted(by_policy), 2):
             better = sign * (by_policy[p][quality] - by_policy[q][quality])
             if not np.isfinite(better) or better == 0:
                 continue
-            pairs += 1
-            agree += (returns[key, p] - returns[key, q]) * better > 0
-    return agree, pairs
+            count[1] += 1
+            count[0] += int((returns[key, p] - returns[key, q]) * better > 0)
+    return counts
+
+
+def _bootstrapped_share(counts: dict, baseline: dict | None = None) -> PairedDifference:
+    """The share of agreeing pairs of :func:`_agreement_by_unit`'s ``counts``, its interval bootstrapped over the units
+    (:func:`~emmi_gym.tools.evaluation.intervals.share_bootstrap`); with ``baseline`` (the counts of the same episodes
+    played otherwise), the share minus the baseline's on the units both hold, paired by unit."""
+    units = list(counts) if baseline is None else [u for u in counts if u in baseline]
+    return share_bootstrap([counts[u][0] for u in units], [counts[u][1] for u in units], units,
+                           None if baseline is None else ([baseline[u][0] for u in units],
+                                                          [baseline[u][1] for u in units]))
+
+
+def _share(agreement: PairedDifference) -> str:
+    return "-" if agreement.mean != agreement.mean else \
+        f"{agreement.mean:.0%} [{agreement.low:.0%}, {agreement.high:.0%}]"
 
 
 def _within_correlation(episodes, returns, quality: str) -> float:
@@ -151,11 +176,55 @@ def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple
                           **{f"return {p}": means[p] for p in policies},
                           "prefers": max(means, key=means.get)}
                 for quality in qualities:
-                    agree, pairs = _agreement(episodes, returns, quality)
+                    counts = _agreement_by_unit(episodes, returns, quality)
+                    agree, pairs = (sum(count[i] for count in counts.values()) for i in (0, 1))
                     result[f"agree {quality}"] = f"{agree}/{pairs}"
+                    result[f"agree {quality}, 95%"] = _share(_bootstrapped_share(counts))
                     result[f"r {quality}"] = _within_correlation(episodes, returns, quality)
                 results.append(result)
     return results
+
+
+def agreement_change(rows: list[dict], baseline_rows: list[dict], variants, time_costs, discounts,
+                     qualities=tuple(QUALITIES)) -> list[dict]:
+    """For each (variant, time cost, discount, quality), the agreement of ``rows`` beside that of ``baseline_rows``
+    (the same episodes played otherwise: another filter, another version) and the change, its interval a bootstrap
+    that draws the units (plans, or one world's episodes) both hold, each with all its pairs in both: ``{"reward",
+    "time_cost", "discount", "quality", "baseline", "agreement", "change", "low", "high", "units", "detectable"}``.
+    A ``ValueError`` where the two share no unit."""
+    episodes, baseline = _episodes(rows), _episodes(baseline_rows)
+    shared = set(_units(episodes).values()) & set(_units(baseline).values())
+    if not shared:
+        raise ValueError(f"the two sets of episodes share no plan (or seed on one world): e.g. {next(iter(episodes))} "
+                         f"against {next(iter(baseline))}")
+    results = []
+    for variant in variants:
+        for time_cost in time_costs:
+            for discount in discounts:
+                returns, baseline_returns = (_returns(e, variant, time_cost, discount) for e in (episodes, baseline))
+                for quality in qualities:
+                    after, before = (_agreement_by_unit(e, r, quality)
+                                     for e, r in ((episodes, returns), (baseline, baseline_returns)))
+                    after, before = ({u: c for u, c in counts.items() if u in shared} for counts in (after, before))
+                    change = _bootstrapped_share(after, before)
+                    results.append({"reward": variant, "time_cost": time_cost, "discount": discount.label,
+                                    "quality": quality, "baseline": _share(_bootstrapped_share(before)),
+                                    "agreement": _share(_bootstrapped_share(after)), "change": change.mean,
+                                    "low": change.low, "high": change.high, "units": change.plans,
+                                    "detectable": change.detectable})
+    return results
+
+
+def change_markdown(results: list[dict], baseline: str) -> str:
+    """:func:`agreement_change` as a markdown table, the changes in percentage points."""
+    lines = [f"Agreement with the better map beside {baseline}'s, on the plans both played; change in points, paired "
+             "by plan, mean [95% interval] (detectable: the smallest change found with 80% power):", "",
+             "| reward | time cost | discount | quality | plans | baseline | agreement | change | detectable |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines += [f"| {r['reward']} | {r['time_cost']:g} | {r['discount']} | {r['quality']} | {r['units']} | "
+              f"{r['baseline']} | {r['agreement']} | {100 * r['change']:+.0f} [{100 * r['low']:+.0f}, "
+              f"{100 * r['high']:+.0f}] | {100 * r['detectable']:.0f} |" for r in results]
+    return "\n".join(lines)
 
 
 def _first_world(episodes, policy: str) -> str:

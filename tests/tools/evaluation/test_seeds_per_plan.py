@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from emmi_gym.tools.evaluation.comparison import ComparisonSettings, compare_on, episodes_on, markdown_table
-from emmi_gym.tools.evaluation.intervals import mean_interval, plan_bootstrap
+from emmi_gym.tools.evaluation.intervals import mean_interval, plan_bootstrap, share_bootstrap
 from emmi_gym.world.map_sets import map_set_files
 
 
@@ -102,3 +102,28 @@ def test_the_commands_refuse_seeds_per_plan_on_a_world_that_is_not_a_map_set(cap
     with pytest.raises(SystemExit):
         main(["benchmark", "--seeds-per-plan", "0"])
     assert "--seeds-per-plan" in capsys.readouterr().err
+
+
+def test_a_share_over_plans_resamples_plans_with_all_their_pairs_and_pairs_a_baseline_by_plan():
+    rng = np.random.default_rng(3)
+    trials = rng.integers(2, 12, size=40)
+    successes = rng.binomial(trials, 0.7)
+    plans = [f"plan{k}" for k in range(40)]
+    share = share_bootstrap(successes, trials, plans)
+    assert share.mean == pytest.approx(successes.sum() / trials.sum()) and share.plans == 40
+    assert share.low < share.mean < share.high and share.high - share.low < 0.2
+    # one plan's pairs all agreeing, the other's none: the plans, not the pairs, are what the interval counts
+    lumped = share_bootstrap([30, 0], [30, 30], ["a", "b"])
+    assert lumped.mean == 0.5 and lumped.low == 0.0 and lumped.high == 1.0
+    same = share_bootstrap(successes, trials, plans, baseline=(successes, trials))
+    assert (same.mean, same.low, same.high) == (0.0, 0.0, 0.0)
+    # a baseline that agrees one pair less on every plan: the change is what it lost, plan by plan
+    fewer = share_bootstrap(successes, trials, plans, baseline=(np.maximum(successes - 1, 0), trials))
+    lost = (successes - np.maximum(successes - 1, 0)).sum() / trials.sum()
+    assert fewer.mean == pytest.approx(lost) and 0 < fewer.low <= lost <= fewer.high
+    assert share == share_bootstrap(successes, trials, plans)   # seeded
+    with pytest.raises(ValueError, match="one each a unit"):
+        share_bootstrap([1, 2], [3], ["a", "b"])
+    with pytest.raises(ValueError, match="named twice"):
+        share_bootstrap([1, 2], [3, 3], ["a", "a"])
+    assert np.isnan(share_bootstrap([0], [0], ["a"]).mean)

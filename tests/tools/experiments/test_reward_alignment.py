@@ -8,7 +8,9 @@ import pytest
 from emmi_gym.tools.evaluation.comparison import ComparisonSettings, compare_on
 from emmi_gym.tools.experiments.reward_alignment import (
     Discount,
+    agreement_change,
     alignment,
+    change_markdown,
     discounted_return,
     markdown,
     paired_markdown,
@@ -47,6 +49,8 @@ def test_agreement_and_correlation_rank_the_better_map_against_the_higher_return
     results = {(r["reward"], r["time_cost"]): r for r in alignment(rows, ["emmi", "coverage"], [0.0, 0.01],
                                                                    [Discount()])}
     assert results["coverage", 0.0]["agree oracle_accuracy"] == "2/2" and results["coverage", 0.0]["prefers"] == "slow"
+    assert results["coverage", 0.0]["agree oracle_accuracy, 95%"] == "100% [100%, 100%]"
+    assert results["emmi", 0.0]["agree oracle_accuracy, 95%"] == "50% [0%, 100%]"   # plan a agrees, b not
     centred_returns, centred_quality = [-0.05, 0.05, -0.1, 0.1], [-0.05, 0.05, -0.025, 0.025]
     assert results["coverage", 0.0]["r oracle_accuracy"] == pytest.approx(np.corrcoef(centred_returns,
                                                                                       centred_quality)[0, 1])
@@ -97,3 +101,21 @@ def test_kept_steps_add_up_to_the_return_the_env_paid():
         assert len(row["steps"]) == row["decisions"] >= 1
         assert math.isclose(discounted_return(row["steps"], "emmi", time_cost, Discount()), row["return"],
                             rel_tol=1e-9, abs_tol=1e-12)
+
+
+def test_a_change_of_agreement_pairs_the_same_plans_played_otherwise():
+    # on plans a-d "slow" maps better; the old filter's EMMI paid "fast" more on a and b, the new one pays "slow"
+    def played(emmi_slow):
+        return [row for world, paid in zip("abcd", emmi_slow, strict=True) for row in (
+            episode(world, "fast", 0.80, 0.4, [step(emmi=0.5)]),
+            episode(world, "slow", 0.90, 0.2, [step(emmi=paid)]))]
+    before, after = played([0.1, 0.1, 0.9, 0.9]), played([0.9, 0.9, 0.9, 0.9])
+    results = {r["quality"]: r for r in agreement_change(after[:6], before, ["emmi"], [0.0], [Discount()])}
+    change = results["oracle_accuracy"]
+    assert change["units"] == 3   # plan d only in the baseline: left out of both
+    assert change["baseline"] == "33% [0%, 100%]" and change["agreement"] == "100% [100%, 100%]"
+    assert change["change"] == pytest.approx(2 / 3) and 0 <= change["low"] <= 2 / 3 <= change["high"] <= 1
+    table = change_markdown(list(results.values()), "old")
+    assert "| emmi | 0 | none | oracle_accuracy | 3 | 33% [0%, 100%] | 100% [100%, 100%] | +67 [" in table
+    with pytest.raises(ValueError, match="share no plan"):
+        agreement_change(after[:2], before[2:4], ["emmi"], [0.0], [Discount()])
