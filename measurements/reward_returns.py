@@ -26,7 +26,8 @@ own env keywords.
 agent played later beside the policies played once (an episode two files hold must be the same in both); by
 default the rewards every step of them holds. ``--against-episodes FILE ...`` sets each agreement beside that of the
 same episodes played otherwise (another filter: ``--options`` of its ``slam``, another version) and gives the
-change with its interval, paired by plan: does a change to the filter make a reward see the better map?
+change with its interval, paired by plan: does a change to the filter make a reward see the better map? The
+``episodes.csv`` of ``--out`` (the final scores) pairs two such runs' maps with ``measurements/versions_paired.py``.
 
     python measurements/reward_returns.py --episodes-from after/episodes.json --against-episodes before/episodes.json
 
@@ -49,6 +50,7 @@ from emmi_gym.env import REWARDS, EnvConfig
 from emmi_gym.env.reward_registry import privileged_rewards
 from emmi_gym.inputs.validation import build
 from emmi_gym.tools.evaluation.comparison import ComparisonSettings, compare_on, policy_name, worlds_of
+from emmi_gym.tools.experiments.report import write_csv
 from emmi_gym.tools.experiments.reward_alignment import (
     QUALITIES,
     Discount,
@@ -88,7 +90,8 @@ def main() -> None:
     parser.add_argument("--against-episodes", nargs="+", type=Path, metavar="FILE",
                         help="episodes.json of the same episodes played otherwise (another filter, another version): "
                              "each agreement beside theirs, and the change paired by plan")
-    parser.add_argument("--out", type=Path, default=None, help="write summary.md and episodes.json here")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="write summary.md, episodes.json and episodes.csv (the final scores) here")
     args = parser.parse_args()
     if args.episodes_from:
         rows = pooled_episodes(parser, args.episodes_from, "--episodes-from")
@@ -161,7 +164,8 @@ def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: l
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "summary.md").write_text(table + "\n")
         (args.out / "episodes.json").write_text(json.dumps(rows))
-        print(f"\nwrote {args.out / 'summary.md'} and {args.out / 'episodes.json'}")
+        write_csv(args.out / "episodes.csv", [{k: v for k, v in row.items() if k != "steps"} for row in rows])
+        print(f"\nwrote {args.out / 'summary.md'}, {args.out / 'episodes.json'} and {args.out / 'episodes.csv'}")
 
 
 def pooled_episodes(parser: argparse.ArgumentParser, files: list[Path], option: str) -> list[dict]:

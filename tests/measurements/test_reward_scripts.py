@@ -66,6 +66,12 @@ def test_reward_returns_weighs_every_reward_cost_and_discount_and_pairs_the_retu
     assert sorted((row["policy"], row["seed"]) for row in episodes) == [
         ("frontier", 0), ("frontier", 1), ("random", 0), ("random", 1)]
     assert (out / "summary.md").read_text().strip() in done.out
+    scores = run_script(MEASUREMENTS / "versions_paired.py", out / "episodes.csv", out / "episodes.csv", "--scores",
+                        "oracle_accuracy", "sim_steps")
+    assert scores.code == 0, scores.err
+    assert [row[:3] + row[5:] for row in markdown_rows(scores.out)] == [
+        [policy, score, "2", "+0 [+0, +0]" + (" = +0.0% [+0.0%, +0.0%]" if score == "sim_steps" else "")]
+        for policy in ("frontier", "random") for score in ("oracle_accuracy", "sim_steps")]
 
 
 def test_reward_returns_reads_the_episodes_it_kept_to_the_same_tables(alignment, tmp_path):
