@@ -12,6 +12,9 @@ episode ended with:
   ATE) also earned the higher return, with a 95% interval from a bootstrap that draws the plans with all their
   pairs (the pairs of one plan are not independent: it explains half the variance of the final map); beside
   another set of the same episodes (another filter: :func:`agreement_change`), the change, paired by plan;
+- **disagreeing pairs**: what the pairs whose better map earned less have in common: the share whose better
+  map took more robot time (a return that ranks episodes by length), and their median quality gap beside the
+  agreeing pairs' in brackets (maps too close to tell);
 - **within-episode correlation**: Pearson's r between return and final map quality after
   subtracting each episode's mean over the policies (what varies between policies on the same
   plan, not between easy and hard plans);
@@ -110,18 +113,43 @@ def _units(episodes) -> dict:
     return {key: key if one_world else key[0] for key in episodes}
 
 
-def _agreement_by_unit(episodes, returns, quality: str) -> dict:
-    """For each unit (:func:`_units`), [pairs where the better map earned more, pairs whose maps differ]."""
-    sign, counts, units = QUALITIES[quality], {}, _units(episodes)
+def _pairs(episodes, returns, quality: str):
+    """Every pair of policies on one episode whose final maps differ: (episode key, the better map's row, the other's,
+    whether the better map earned the higher return)."""
+    sign = QUALITIES[quality]
     for key, by_policy in episodes.items():
-        count = counts.setdefault(units[key], [0, 0])
         for p, q in combinations(sorted(by_policy), 2):
             better = sign * (by_policy[p][quality] - by_policy[q][quality])
             if not np.isfinite(better) or better == 0:
                 continue
-            count[1] += 1
-            count[0] += int((returns[key, p] - returns[key, q]) * better > 0)
+            (good, g), (bad, b) = ((p, by_policy[p]), (q, by_policy[q])) if better > 0 else \
+                ((q, by_policy[q]), (p, by_policy[p]))
+            yield key, g, b, returns[key, good] > returns[key, bad]
+
+
+def _agreement_by_unit(episodes, returns, quality: str) -> dict:
+    """For each unit (:func:`_units`), [pairs where the better map earned more, pairs whose maps differ]."""
+    units = _units(episodes)
+    counts = {unit: [0, 0] for unit in units.values()}
+    for key, _, _, agrees in _pairs(episodes, returns, quality):
+        counts[units[key]][0] += int(agrees)
+        counts[units[key]][1] += 1
     return counts
+
+
+def _disagreements(episodes, returns, quality: str) -> str:
+    """What the pairs whose better map earned less have in common: the share whose better map took more robot time,
+    and their median quality gap beside that of the agreeing pairs (a return that pays by length, or maps too close
+    for it to tell)."""
+    longer, gaps = [], {True: [], False: []}
+    for _, good, bad, agrees in _pairs(episodes, returns, quality):
+        gaps[agrees].append(abs(good[quality] - bad[quality]))
+        if not agrees:
+            longer.append(good["sim_steps"] > bad["sim_steps"])
+    if not longer:
+        return "-"
+    agreeing = f"{np.median(gaps[True]):.3g}" if gaps[True] else "-"
+    return f"{np.mean(longer):.0%} longer, gap {np.median(gaps[False]):.3g} ({agreeing})"
 
 
 def _bootstrapped_share(counts: dict, baseline: dict | None = None) -> PairedDifference:
@@ -180,6 +208,7 @@ def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple
                     agree, pairs = (sum(count[i] for count in counts.values()) for i in (0, 1))
                     result[f"agree {quality}"] = f"{agree}/{pairs}"
                     result[f"agree {quality}, 95%"] = _share(_bootstrapped_share(counts))
+                    result[f"disagreeing {quality}"] = _disagreements(episodes, returns, quality)
                     result[f"r {quality}"] = _within_correlation(episodes, returns, quality)
                 results.append(result)
     return results

@@ -51,6 +51,9 @@ def test_agreement_and_correlation_rank_the_better_map_against_the_higher_return
     assert results["coverage", 0.0]["agree oracle_accuracy"] == "2/2" and results["coverage", 0.0]["prefers"] == "slow"
     assert results["coverage", 0.0]["agree oracle_accuracy, 95%"] == "100% [100%, 100%]"
     assert results["emmi", 0.0]["agree oracle_accuracy, 95%"] == "50% [0%, 100%]"   # plan a agrees, b not
+    # plan b's better map ("slow") took longer and earned less; its maps are closer than plan a's
+    assert results["emmi", 0.0]["disagreeing oracle_accuracy"] == "100% longer, gap 0.05 (0.1)"
+    assert results["coverage", 0.0]["disagreeing oracle_accuracy"] == "-"
     centred_returns, centred_quality = [-0.05, 0.05, -0.1, 0.1], [-0.05, 0.05, -0.025, 0.025]
     assert results["coverage", 0.0]["r oracle_accuracy"] == pytest.approx(np.corrcoef(centred_returns,
                                                                                       centred_quality)[0, 1])
