@@ -161,11 +161,13 @@ def share_bootstrap(successes, trials, units, baseline=None, confidence: float =
     version), the share minus the baseline's, both taken on each resample's units (paired by unit). ``detectable``
     as :func:`plan_bootstrap` states it; a resample without trials is left out."""
     s, t = np.asarray(successes, dtype=float), np.asarray(trials, dtype=float)
-    b_s, b_t = (np.zeros_like(s), np.ones_like(t)) if baseline is None else \
-        (np.asarray(baseline[0], dtype=float), np.asarray(baseline[1], dtype=float))
-    if not len(s) == len(t) == len(units) == len(b_s) == len(b_t):
-        raise ValueError(f"{len(s)} successes, {len(t)} trials, {len(units)} units and {len(b_s)} and {len(b_t)} "
-                         "of the baseline: one each a unit")
+    if not len(s) == len(t) == len(units):
+        raise ValueError(f"{len(s)} successes, {len(t)} trials and {len(units)} units: one each a unit")
+    if baseline is not None:
+        b_s, b_t = np.asarray(baseline[0], dtype=float), np.asarray(baseline[1], dtype=float)
+        if not len(b_s) == len(b_t) == len(s):
+            raise ValueError(f"{len(b_s)} successes and {len(b_t)} trials of the baseline for {len(s)} units: one "
+                             "each a unit")
     if len(set(units)) != len(units):
         raise ValueError("a unit is named twice: give each unit's successes and trials summed")
 
@@ -175,7 +177,7 @@ def share_bootstrap(successes, trials, units, baseline=None, confidence: float =
             return share if baseline is None else share - b_s[drawn].sum(axis=-1) / b_t[drawn].sum(axis=-1)
 
     n = len(s)
-    if n == 0 or t.sum() == 0 or b_t.sum() == 0:
+    if n == 0 or t.sum() == 0 or (baseline is not None and b_t.sum() == 0):
         return PairedDifference(math.nan, math.nan, math.nan, n, math.nan)
     mean = float(shares(np.arange(n)))
     if n < 2:

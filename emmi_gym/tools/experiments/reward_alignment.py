@@ -122,9 +122,8 @@ def _pairs(episodes, returns, quality: str):
             better = sign * (by_policy[p][quality] - by_policy[q][quality])
             if not np.isfinite(better) or better == 0:
                 continue
-            (good, g), (bad, b) = ((p, by_policy[p]), (q, by_policy[q])) if better > 0 else \
-                ((q, by_policy[q]), (p, by_policy[p]))
-            yield key, g, b, returns[key, good] > returns[key, bad]
+            good, bad = (p, q) if better > 0 else (q, p)
+            yield key, by_policy[good], by_policy[bad], returns[key, good] > returns[key, bad]
 
 
 def _agreement_by_unit(episodes, returns, quality: str) -> dict:
@@ -163,7 +162,7 @@ def _bootstrapped_share(counts: dict, baseline: dict | None = None) -> PairedDif
 
 
 def _share(agreement: PairedDifference) -> str:
-    return "-" if agreement.mean != agreement.mean else \
+    return "-" if math.isnan(agreement.mean) else \
         f"{agreement.mean:.0%} [{agreement.low:.0%}, {agreement.high:.0%}]"
 
 
