@@ -47,6 +47,10 @@ class _Lines:
         self.stream.flush()
 
 
+#: Seconds :meth:`Heartbeat.stop` waits for a beat under way (a beat is a line or a count of files: short).
+JOIN_TIMEOUT = 10.0
+
+
 class Heartbeat(threading.Thread):
     """Calls ``beat()`` every ``interval`` seconds until stopped (a daemon: it never holds a process open)."""
 
@@ -60,7 +64,11 @@ class Heartbeat(threading.Thread):
             self.beat()
 
     def stop(self) -> None:
+        """No beat starts after this; one under way is waited for (up to ``JOIN_TIMEOUT`` s), so that nothing it
+        writes lands after the caller's next output. Called from a beat itself, it only ends the loop."""
         self.stopped.set()
+        if self.is_alive() and threading.current_thread() is not self:
+            self.join(JOIN_TIMEOUT)
 
 
 class LineTqdm(std.tqdm):

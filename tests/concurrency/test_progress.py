@@ -6,7 +6,7 @@ import time
 
 from tqdm import std
 
-from emmi_gym.concurrency.progress import LineTqdm, progress_bar
+from emmi_gym.concurrency.progress import Heartbeat, LineTqdm, progress_bar
 
 
 class Terminal(io.StringIO):
@@ -42,3 +42,30 @@ def test_a_terminal_gets_tqdm_s_own_bar_and_a_disabled_bar_writes_nothing():
         time.sleep(0.2)
         quiet.update(3)
     assert log.getvalue() == ""
+
+
+def test_a_stopped_heartbeat_has_finished_the_beat_under_way():
+    # a slow beat (a file count on a busy machine) must not write after stop() returned
+    started, finished = [], []
+
+    def beat():
+        started.append(time.monotonic())
+        time.sleep(0.3)
+        finished.append(time.monotonic())
+
+    heartbeat = Heartbeat(beat, 0.01)
+    heartbeat.start()
+    deadline = time.monotonic() + 60
+    while not started and time.monotonic() < deadline:
+        time.sleep(0.001)
+    assert started
+    heartbeat.stop()
+    assert len(finished) == len(started) and not heartbeat.is_alive()
+
+    def stops_itself():
+        heartbeat.stop()
+
+    heartbeat = Heartbeat(stops_itself, 0.01)
+    heartbeat.start()
+    heartbeat.join(5.0)
+    assert not heartbeat.is_alive()  # stop() from its own beat ends the loop instead of waiting on itself
