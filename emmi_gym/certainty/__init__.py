@@ -34,6 +34,7 @@ from .pose import (
     path_entropy,
     path_entropy_of_parts,
     pose_entropy,
+    widest_loop_spread,
 )
 from .weights import effective_sample_size, normalize_weights, weight_entropy
 
@@ -66,4 +67,5 @@ __all__ = [
     "pose_entropy",
     "weight_entropy",
     "weighted_map_entropy",
+    "widest_loop_spread",
 ]

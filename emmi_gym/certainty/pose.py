@@ -28,6 +28,17 @@ def _check_poses(poses, last_dims: int, name: str) -> np.ndarray:
     return a
 
 
+def _checked_paths(paths, weights, log_weights: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Paths (M, T >= 1, 3) and their M normalised weights, or a ValueError saying what is wrong."""
+    p = _check_poses(paths, 3, "paths")
+    w = normalize_weights(weights, log=log_weights)
+    if w.shape[0] != p.shape[0]:
+        raise ValueError(f"{p.shape[0]} paths but {w.shape[0]} weights")
+    if p.shape[1] == 0:
+        raise ValueError("paths must hold at least one pose")
+    return p, w
+
+
 def pose_entropy(poses, weights, *, log_weights: bool = False, det_floor: float = DEFAULT_DET_FLOOR) -> float:
     """Differential entropy (nats) of a Gaussian fitted to weighted particle poses.
 
@@ -50,12 +61,7 @@ def path_entropy(paths, weights, *, log_weights: bool = False, det_floor: float 
     The approximation of the path posterior's entropy of Stachniss et al. (2005),
     used as the first term of the joint entropy, eq. (12).
     """
-    p = _check_poses(paths, 3, "paths")
-    w = normalize_weights(weights, log=log_weights)
-    if w.shape[0] != p.shape[0]:
-        raise ValueError(f"{p.shape[0]} paths but {w.shape[0]} weights")
-    if p.shape[1] == 0:
-        raise ValueError("paths must hold at least one pose")
+    p, _ = _checked_paths(paths, weights, log_weights)
     return path_entropy_of_parts(p, heading_sincos(p), weights, log_weights=log_weights, det_floor=det_floor)
 
 
@@ -105,6 +111,24 @@ def loop_displacement_spread(paths, weights, since: int, *, log_weights: bool = 
     w = normalize_weights(weights, log=log_weights)
     if not -p.shape[1] <= since < p.shape[1]:
         raise ValueError(f"since={since} is not an update index of paths with {p.shape[1]} updates")
-    displacement = p[:, -1, :2] - p[:, since, :2]
-    centred = displacement - w @ displacement
-    return float(math.sqrt(max(float(w @ np.sum(centred ** 2, axis=1)), 0.0)))
+    return float(_displacement_spreads(p[:, -1, :2], p[:, [since], :2], w)[0])
+
+
+def widest_loop_spread(paths, weights, *, log_weights: bool = False) -> float:
+    """The largest :func:`loop_displacement_spread` over every earlier update of the paths (M, T, 3), m.
+
+    How far apart the particles put the robot relative to the place of the path they disagree on most:
+    the widest loop still open. It grows as odometry drifts, does not move while the robot stands or
+    spins, and falls when a closed loop (or a resampling that keeps one lineage) makes the particles agree
+    on where they are relative to where they have been. 0 for a single pose or particles that agree.
+    """
+    p, w = _checked_paths(paths, weights, log_weights)
+    return float(_displacement_spreads(p[:, -1, :2], p[:, :, :2], w).max())
+
+
+def _displacement_spreads(now: np.ndarray, then: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(T,) the weighted spread, sqrt(sum_i w_i |d_ik - mean_i d_ik|^2), of d_ik = now_i - then_ik: positions
+    now (M, 2) and at T earlier updates (M, T, 2)."""
+    displacement = now[:, None, :] - then
+    centred = displacement - np.einsum("i,itd->td", w, displacement)
+    return np.sqrt(np.maximum(np.einsum("i,it->t", w, np.sum(centred ** 2, axis=2)), 0.0))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
+from .. import certainty
 from ..geometry.grid import GridGeometry
 from ..navigation.candidates import Target
 from ..navigation.follower import WaypointFollower
@@ -255,7 +256,9 @@ class EmmiEnv(gym.Env):
         ground-truth scores only if a reward reads one."""
         m, measures = self._metrics, {}
         for name in self._rewards.reads:
-            if name in FILTER_MEASURES:
+            if name == "loop_spread":
+                measures[name] = certainty.widest_loop_spread(self.slam.paths, self.slam.log_weights, log_weights=True)
+            elif name in FILTER_MEASURES:
                 measures[name] = getattr(m, name)
             elif name == "coverage":
                 measures[name] = self._coverage

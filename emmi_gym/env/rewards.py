@@ -23,6 +23,9 @@ with ``scale`` the reward's own unless ``reward_scale`` is given, and puts each 
   (privileged: the scans at the true poses);
 - ``emmi_coverage``: the change of EMMI x coverage, the mean information over the whole reachable free
   space (unexplored cells count as 0 bits) rather than over the observed cells (privileged, as coverage);
+- ``loop_spread``: the fall of the widest loop the particles hold open (how far apart they put the robot
+  relative to the place of its path they disagree on most, :func:`~emmi_gym.certainty.widest_loop_spread`):
+  odometry drift costs, a closed loop pays, standing and spinning earn nothing;
 - ``oracle_accuracy``, ``wall_consistency``: their change; ``ate``: its fall (privileged: the ground-truth
   scores of :mod:`emmi_gym.scoring.scores`).
 
@@ -39,9 +42,11 @@ from dataclasses import dataclass
 
 from ..inputs.validation import OptionError
 
-#: What a reward may read of the filter: the certainty of the particle set (:class:`~emmi_gym.slam.UpdateMetrics`).
+#: What a reward may read of the filter: the certainty of the particle set (:class:`~emmi_gym.slam.UpdateMetrics`,
+#: measured at every filter update) and the widest loop its paths hold open (``loop_spread``,
+#: :func:`~emmi_gym.certainty.widest_loop_spread`, measured only when a reward reads it).
 FILTER_MEASURES = ("emmi", "map_information", "mean_information_best", "pose_entropy", "weight_entropy",
-                   "path_entropy", "joint_entropy", "neff")
+                   "path_entropy", "joint_entropy", "neff", "loop_spread")
 #: The ground-truth scores the environment computes only when a reward, ``info`` or the episode's end needs them.
 SCORES = ("map_accuracy", "oracle_accuracy", "wall_consistency", "ate", "building_accuracy")
 #: What a reward may read of the ground truth (coverage is read on the oracle map, the scans at the true poses; the
@@ -122,6 +127,7 @@ def change_reward(measure: str, scale: float, meaning: str, falling: bool = Fals
 #: privileged scores on ExplorePlans-v1's plans (measurements/reward_scales.py, docs/results/rewards.md): the
 #: oracle accuracy moves by about 0.003 per decision (0.015 at the 90th percentile), the wall consistency by
 #: 0.008 (0.05), the ATE by 0.01 m (0.08 m): scaled to 0.1-0.8 as EMMI and coverage are.
+LOOP_SPREAD_SCALE = 10.0
 BUILT_IN = (
     change_reward("emmi", 10.0, "EMMI, eq. (11), bits per cell"),
     change_reward("pose_entropy", 0.1, "the pose entropy, nats (a fall pays)", falling=True),
@@ -129,6 +135,7 @@ BUILT_IN = (
     change_reward("coverage", 10.0, "the share of the reachable free space swept (the oracle map)"),
     Reward("emmi_coverage", ("emmi", "coverage"), 10.0, emmi_coverage_change, "EMMI x coverage"),
     change_reward("map_information", 1e-3, "the expected map's information, eq. (9) over its observed cells, bits"),
+    change_reward("loop_spread", LOOP_SPREAD_SCALE, "the widest open loop's spread, m (a fall pays)", falling=True),
     change_reward("oracle_accuracy", 50.0, "the accuracy against the oracle map"),
     change_reward("wall_consistency", 10.0, "the wall consistency against the oracle map"),
     change_reward("ate", 10.0, "the ATE of the best particle's path, m (a fall pays)", falling=True),

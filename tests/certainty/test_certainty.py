@@ -285,6 +285,25 @@ def test_loop_displacement_spread():
         C.loop_displacement_spread(drifted, np.ones(400), since=30)
 
 
+def test_widest_loop_spread_is_the_largest_spread_over_the_path():
+    """The widest open loop: the spread since the update the particles disagree about most; 0 where they agree."""
+    rng = np.random.default_rng(7)
+    common = np.repeat(np.cumsum(rng.normal(size=(1, 30, 3)), axis=1), 400, axis=0)
+    assert C.widest_loop_spread(common, np.ones(400)) == pytest.approx(0.0, abs=1e-9)
+    assert C.widest_loop_spread(common[:, :1], np.ones(400)) == 0.0  # one pose: no loop
+    split = common.copy()
+    split[:, 10:, :2] += rng.normal(scale=0.3, size=(400, 1, 2))  # the particles split after update 9
+    split[:, 20:, :2] += rng.normal(scale=0.1, size=(400, 1, 2))  # and again after update 19
+    spreads = [C.loop_displacement_spread(split, np.ones(400), since=k) for k in range(30)]
+    assert C.widest_loop_spread(split, np.ones(400)) == pytest.approx(max(spreads))
+    assert max(spreads) == pytest.approx(spreads[0]) and spreads[0] > spreads[15] > spreads[25] == pytest.approx(0)
+    logw = rng.normal(size=400)
+    linear = C.widest_loop_spread(split, np.exp(logw))
+    assert C.widest_loop_spread(split, logw, log_weights=True) == pytest.approx(linear)
+    with pytest.raises(ValueError, match="30 paths but 400 weights"):
+        C.widest_loop_spread(split[:30], np.ones(400))
+
+
 @pytest.mark.parametrize("bad, message", [
     (dict(weights=[1.0, -1.0]), "non-negative"),
     (dict(weights=[0.0, 0.0]), "sum to zero"),

@@ -79,8 +79,8 @@ def test_spaces_and_info():
     before = info
     obs, reward, terminated, truncated, info = env.step(frontier_action(env))
     assert set(info["reward_components"]) == {"emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage",
-                                              "map_information", "oracle_accuracy", "wall_consistency", "ate",
-                                              "time", "collision"}
+                                              "map_information", "loop_spread", "oracle_accuracy",
+                                              "wall_consistency", "ate", "time", "collision"}
     gained = info["map_information"] - before["map_information"]
     assert gained > 100 and info["reward_components"]["map_information"] == pytest.approx(1e-3 * gained)
     expected = info["reward_components"]["emmi"] + info["reward_components"]["time"] + \

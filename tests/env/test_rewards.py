@@ -10,6 +10,7 @@ import pytest
 from helpers import assert_same
 
 import emmi_gym
+from emmi_gym import certainty
 from emmi_gym.env import REWARDS, Reward, emmi_env, register_reward
 from emmi_gym.env.reward_registry import privileged_rewards, reward_named
 from emmi_gym.env.rewards import SCORES, Change, StepRewards
@@ -40,7 +41,8 @@ def test_the_built_ins_are_registered_with_what_they_read():
     assert list(REWARDS)[:6] == ["emmi", "pose_entropy", "joint_entropy", "coverage", "emmi_coverage",
                                  "map_information"]
     assert set(privileged_rewards()) == {"coverage", "emmi_coverage", "oracle_accuracy", "wall_consistency", "ate"}
-    assert not any(REWARDS[name].privileged for name in ("emmi", "pose_entropy", "joint_entropy", "map_information"))
+    assert not any(REWARDS[name].privileged for name in ("emmi", "pose_entropy", "joint_entropy", "map_information",
+                                                         "loop_spread"))
     assert REWARDS["ate"].value({"ate": 0.5}, {"ate": 0.2}) == pytest.approx(0.3)  # a fall of the ATE pays
     assert REWARDS["oracle_accuracy"].value({"oracle_accuracy": 0.5}, {"oracle_accuracy": 0.6}) == pytest.approx(0.1)
     assert reward_named("emmi") is REWARDS["emmi"]
@@ -208,3 +210,26 @@ def test_the_old_scales_by_name_still_read_with_a_warning():
         warnings.simplefilter("always")
         scales = env.REWARD_SCALES
     assert scales["emmi"] == 10.0 and "deprecated" in str(caught[0].message)
+
+
+def test_the_loop_spread_reward_pays_the_fall_of_the_widest_loop_the_paths_hold_open():
+    """It reads the filter's paths at the step's end: its component is the fall of the widest open loop, x10."""
+    env = gym.make("emmi_gym/Explore-v1", reward="loop_spread", **TINY)
+    core = env.unwrapped
+    env.reset(seed=3)
+
+    def widest():
+        return certainty.widest_loop_spread(core.slam.paths, core.slam.log_weights, log_weights=True)
+
+    before, moved = widest(), False
+    for _ in range(4):
+        _, reward, terminated, truncated, info = env.step(frontier_action(env))
+        after = widest()
+        assert info["reward_components"]["loop_spread"] == pytest.approx(10.0 * (before - after))
+        assert reward == pytest.approx(info["reward_components"]["loop_spread"] + info["reward_components"]["time"]
+                                       + info["reward_components"]["collision"])
+        moved |= after != before
+        before = after
+        if terminated or truncated:
+            break
+    assert moved and info["privileged_rewards"] == []
