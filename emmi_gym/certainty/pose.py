@@ -118,8 +118,8 @@ def widest_loop_spread(paths, weights, *, log_weights: bool = False) -> float:
     """The largest :func:`loop_displacement_spread` over every earlier update of the paths (M, T, 3), m.
 
     How far apart the particles put the robot relative to the place of the path they disagree on most:
-    the widest loop still open. It grows as odometry drifts, does not move while the robot stands or
-    spins, and falls when a closed loop (or a resampling that keeps one lineage) makes the particles agree
+    the widest loop still open. It grows as odometry drifts (hardly while the robot stands or
+    spins) and falls when a closed loop (or a resampling that keeps one lineage) makes the particles agree
     on where they are relative to where they have been. 0 for a single pose or particles that agree.
     """
     p, w = _checked_paths(paths, weights, log_weights)

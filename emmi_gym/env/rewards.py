@@ -25,7 +25,7 @@ with ``scale`` the reward's own unless ``reward_scale`` is given, and puts each 
   space (unexplored cells count as 0 bits) rather than over the observed cells (privileged, as coverage);
 - ``loop_spread``: the fall of the widest loop the particles hold open (how far apart they put the robot
   relative to the place of its path they disagree on most, :func:`~emmi_gym.certainty.widest_loop_spread`):
-  odometry drift costs, a closed loop pays, standing and spinning earn nothing;
+  odometry drift costs, a closed loop pays, standing and spinning earn no reward;
 - ``oracle_accuracy``, ``wall_consistency``: their change; ``ate``: its fall (privileged: the ground-truth
   scores of :mod:`emmi_gym.scoring.scores`).
 
@@ -126,8 +126,8 @@ def change_reward(measure: str, scale: float, meaning: str, falling: bool = Fals
 #: (bits, one per certain cell) grows by hundreds to thousands as a macro-action observes new cells. The
 #: privileged scores on ExplorePlans-v1's plans (measurements/reward_scales.py, docs/results/rewards.md): the
 #: oracle accuracy moves by about 0.003 per decision (0.015 at the 90th percentile), the wall consistency by
-#: 0.008 (0.05), the ATE by 0.01 m (0.08 m): scaled to 0.1-0.8 as EMMI and coverage are.
-LOOP_SPREAD_SCALE = 10.0
+#: 0.008 (0.05), the ATE by 0.01 m (0.08 m), the widest loop spread by 0.02 m (0.08 m): scaled to 0.1-0.8 as
+#: EMMI and coverage are.
 BUILT_IN = (
     change_reward("emmi", 10.0, "EMMI, eq. (11), bits per cell"),
     change_reward("pose_entropy", 0.1, "the pose entropy, nats (a fall pays)", falling=True),
@@ -135,7 +135,7 @@ BUILT_IN = (
     change_reward("coverage", 10.0, "the share of the reachable free space swept (the oracle map)"),
     Reward("emmi_coverage", ("emmi", "coverage"), 10.0, emmi_coverage_change, "EMMI x coverage"),
     change_reward("map_information", 1e-3, "the expected map's information, eq. (9) over its observed cells, bits"),
-    change_reward("loop_spread", LOOP_SPREAD_SCALE, "the widest open loop's spread, m (a fall pays)", falling=True),
+    change_reward("loop_spread", 10.0, "the widest open loop's spread, m (a fall pays)", falling=True),
     change_reward("oracle_accuracy", 50.0, "the accuracy against the oracle map"),
     change_reward("wall_consistency", 10.0, "the wall consistency against the oracle map"),
     change_reward("ate", 10.0, "the ATE of the best particle's path, m (a fall pays)", falling=True),
