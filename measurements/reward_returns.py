@@ -28,6 +28,8 @@ default the rewards every step of them holds. ``--against-episodes FILE ...`` se
 same episodes played otherwise (another filter: ``--options`` of its ``slam``, another version) and gives the
 change with its interval, paired by plan: does a change to the filter make a reward see the better map? The
 ``episodes.csv`` of ``--out`` (the final scores) pairs two such runs' maps with ``measurements/versions_paired.py``.
+``--against-reward NAME`` sets each reward's agreement beside NAME's on the same episodes, the change paired by
+plan: does one reward side with the better map more often than another?
 
     python measurements/reward_returns.py --episodes-from after/episodes.json --against-episodes before/episodes.json
 
@@ -90,6 +92,9 @@ def main() -> None:
     parser.add_argument("--against-episodes", nargs="+", type=Path, metavar="FILE",
                         help="episodes.json of the same episodes played otherwise (another filter, another version): "
                              "each agreement beside theirs, and the change paired by plan")
+    parser.add_argument("--against-reward", choices=list(REWARDS), default=None, metavar="NAME",
+                        help="each reward's agreement beside that of the reward NAME on the same episodes, and the "
+                             "change paired by plan")
     parser.add_argument("--out", type=Path, default=None,
                         help="write summary.md, episodes.json and episodes.csv (the final scores) here")
     args = parser.parse_args()
@@ -159,6 +164,13 @@ def report(parser: argparse.ArgumentParser, args, rows: list[dict], discounts: l
         except ValueError as error:
             parser.error(f"--against-episodes: {error}")
         table += "\n\n" + change_markdown(changes, ", ".join(map(str, args.against_episodes)))
+    if args.against_reward is not None:
+        if args.against_reward not in args.rewards:
+            parser.error(f"--against-reward: {args.against_reward!r} is not one of --rewards {args.rewards}")
+        others = [name for name in args.rewards if name != args.against_reward]
+        changes = agreement_change(rows, rows, others, args.time_costs, discounts, tuple(QUALITIES),
+                                   baseline_reward=args.against_reward)
+        table += "\n\n" + change_markdown(changes, f"the reward {args.against_reward}")
     print(table)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

@@ -105,3 +105,24 @@ def test_reward_returns_sets_the_agreement_beside_that_of_the_same_episodes_play
     broken = run_script(MEASUREMENTS / "reward_returns.py", "--episodes-from", out / "episodes.json",
                         "--against-episodes", tmp_path / "broken.json")
     assert broken.code == 2 and f"--against-episodes: {tmp_path / 'broken.json'}: not an episodes.json" in broken.err
+
+
+def test_reward_returns_sets_each_reward_beside_another_on_the_same_episodes(alignment):
+    done, out = alignment
+    beside = run_script(MEASUREMENTS / "reward_returns.py", "--episodes-from", out / "episodes.json", "--rewards",
+                        "emmi", "coverage", "--discounts", "none", "--against-reward", "coverage")
+    assert beside.code == 0, beside.err
+    assert "beside the reward coverage's" in beside.out
+    changes = [row for row in markdown_rows(beside.out) if len(row) == 9 and row[0] in ("emmi", "coverage")]
+    assert {row[0] for row in changes} == {"emmi"}  # the baseline is not set beside itself
+    header = next(line for line in done.out.splitlines() if line.startswith("| reward | reads |"))
+    columns = [cell.strip() for cell in header.strip("|").split("|")]
+    coverage = {(row[columns.index("time_cost")], quality): row[columns.index(f"agree {quality}, 95%")]
+                for row in markdown_rows(done.out) if row[0] == "coverage" and len(row) == len(columns)
+                and row[columns.index("discount")] == "none" for quality in ("oracle_accuracy", "ate")}
+    assert sorted((row[1], row[3]) for row in changes) == sorted(coverage)
+    for row in changes:  # the baseline is the coverage reward's own agreement on the same episodes, undiscounted
+        assert row[2] == "none" and row[5] == coverage[row[1], row[3]]
+    unknown = run_script(MEASUREMENTS / "reward_returns.py", "--episodes-from", out / "episodes.json", "--rewards",
+                         "emmi", "--against-reward", "coverage")
+    assert unknown.code == 2 and "--against-reward: 'coverage' is not one of --rewards ['emmi']" in unknown.err

@@ -214,11 +214,13 @@ def alignment(rows: list[dict], variants, time_costs, discounts, qualities=tuple
 
 
 def agreement_change(rows: list[dict], baseline_rows: list[dict], variants, time_costs, discounts,
-                     qualities=tuple(QUALITIES)) -> list[dict]:
+                     qualities=tuple(QUALITIES), baseline_reward: str | None = None) -> list[dict]:
     """For each (variant, time cost, discount, quality), the agreement of ``rows`` beside that of ``baseline_rows``
     (the same episodes played otherwise: another filter, another version) and the change, its interval a bootstrap
     that draws the units (plans, or one world's episodes) both hold, each with all its pairs in both: ``{"reward",
     "time_cost", "discount", "quality", "baseline", "agreement", "change", "low", "high", "units", "detectable"}``.
+    With ``baseline_reward``, the baseline's agreement is that reward's (at the same time cost and discount), not
+    the variant's own: two rewards on the same episodes when ``baseline_rows`` is ``rows``.
     A ``ValueError`` where the two share no unit."""
     episodes, baseline = _episodes(rows), _episodes(baseline_rows)
     shared = set(_units(episodes).values()) & set(_units(baseline).values())
@@ -229,7 +231,8 @@ def agreement_change(rows: list[dict], baseline_rows: list[dict], variants, time
     for variant in variants:
         for time_cost in time_costs:
             for discount in discounts:
-                returns, baseline_returns = (_returns(e, variant, time_cost, discount) for e in (episodes, baseline))
+                returns = _returns(episodes, variant, time_cost, discount)
+                baseline_returns = _returns(baseline, baseline_reward or variant, time_cost, discount)
                 for quality in qualities:
                     after, before = (_agreement_by_unit(e, r, quality)
                                      for e, r in ((episodes, returns), (baseline, baseline_returns)))

@@ -122,3 +122,16 @@ def test_a_change_of_agreement_pairs_the_same_plans_played_otherwise():
     assert "| emmi | 0 | none | oracle_accuracy | 3 | 33% [0%, 100%] | 100% [100%, 100%] | +67 [" in table
     with pytest.raises(ValueError, match="share no plan"):
         agreement_change(after[:2], before[2:4], ["emmi"], [0.0], [Discount()])
+
+
+def test_two_rewards_agreement_on_the_same_episodes_paired_by_plan():
+    # on plans a-c "slow" maps better; EMMI pays it more on all three, the coverage on none
+    rows = [row for world in "abc" for row in (
+        episode(world, "fast", 0.80, 0.4, [step(emmi=0.1, coverage=0.9)]),
+        episode(world, "slow", 0.90, 0.2, [step(emmi=0.9, coverage=0.1)]))]
+    results = {r["quality"]: r for r in agreement_change(rows, rows, ["emmi"], [0.0], [Discount()],
+                                                         baseline_reward="coverage")}
+    change = results["oracle_accuracy"]
+    assert change["reward"] == "emmi" and change["units"] == 3
+    assert change["baseline"] == "0% [0%, 0%]" and change["agreement"] == "100% [100%, 100%]"
+    assert change["change"] == pytest.approx(1.0)
