@@ -50,7 +50,8 @@ def add_parser(subparsers) -> None:
     arguments.add_ray(bench, "run the agents' training and evaluation as Ray tasks instead of local processes")
     bench.add_argument("--out", default="benchmark_out",
                        help="folder for the agents' run folders, the episodes, summary and figures (default "
-                            "benchmark_out; run again into it, finished agents are evaluated, unfinished ones resumed)")
+                            "benchmark_out; run again into it, finished agents are evaluated, unfinished ones "
+                            "resumed, and the episodes kept in its played/ are not played again)")
     arguments.add_trust_model(bench, "the --init-from model")
     arguments.add_quiet(bench)
     bench.set_defaults(func=run)
@@ -95,13 +96,15 @@ def run(args: argparse.Namespace) -> int:
         return 0
     per_plan = f" x {args.seeds_per_plan} seeds" if args.seeds_per_plan > 1 else ""
     reused = sum(1 for r in results if r["job"].kind == "agent" and not r["trained"])
+    kept = sum(r["kept_episodes"] for r in results)
     header = (f"Reward benchmark: {config.algorithm} on {config.env_id} ({Path(args.config).name}), "
               f"{args.timesteps} training steps per agent"
               f"{f' (from the weights of {args.init_from})' if args.init_from else ''}, "
               f"seeds {args.first_seed}-{args.first_seed + args.seeds - 1} per reward, {args.episodes} held-out "
               f"evaluation episodes each{per_plan} (seeds from {args.eval_seed}); {elapsed / 60:.1f} min wall time "
               f"({'Ray' if args.ray else 'local processes'}"
-              f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}). "
+              f"{f'; {reused} agent(s) trained by an earlier run into this folder' if reused else ''}"
+              f"{f'; {kept} episode(s) played by an earlier run, kept in its played/' if kept else ''}). "
               f"Mean [95% t-interval]: over agents for trained variants (one agent: its mean), over plans "
               f"for the baselines.")
     files = write_benchmark(results, args.out, header)

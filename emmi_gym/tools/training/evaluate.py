@@ -5,6 +5,7 @@ and scored by :mod:`emmi_gym.tools.evaluation.comparison`, as every other policy
 
 from __future__ import annotations
 
+import hashlib
 import warnings
 from dataclasses import dataclass
 from functools import lru_cache
@@ -38,6 +39,11 @@ class TrainedAgent:
 
     def make_actor(self) -> ModelActor:
         return ModelActor(_model_in_this_process(self.path))
+
+    def identity(self) -> dict:
+        """What it plays, for :mod:`~emmi_gym.tools.evaluation.played_episodes`: the SHA-256 of its model file (a
+        model trained on, or another file at the same path, is another policy)."""
+        return {"model_sha256": hashlib.sha256(Path(self.path).read_bytes()).hexdigest()}
 
     def check_plays_in(self, config, what: str) -> None:
         """A ``ValueError`` starting with ``what`` (the option) unless the model was trained on ``config``'s env

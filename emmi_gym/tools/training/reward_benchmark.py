@@ -8,7 +8,10 @@ Runs are independent jobs: by default they go to local worker processes; with a 
 optional extra, imported only on that path. A run folder that already holds the finished
 model of the same configuration is evaluated, not trained again; one that holds an unfinished run
 of it (a benchmark interrupted) is resumed; one that holds anything else is refused before any
-job starts.
+job starts. Every job keeps its evaluation episodes in ``--out``'s ``played/`` as they are played
+(:mod:`~emmi_gym.tools.evaluation.played_episodes`): a benchmark run again into the folder, interrupted or with more
+agents beside the same baselines, plays only the episodes that are not kept there yet (on a Ray cluster of several
+machines, those of the jobs that ran on this one).
 """
 
 from __future__ import annotations
@@ -32,12 +35,15 @@ from ..evaluation.directions import better_side, format_number
 from ..evaluation.episodes import nanmean
 from ..evaluation.intervals import PairedDifference, measure_interval, plan_bootstrap
 from ..evaluation.loop_order import LOOP_ORDER_KEY
+from ..evaluation.played_episodes import PlayedEpisodes
 from ..evaluation.robot_time import TRACE, read_together, trace_rows, without_traces
 from .config import AgentConfig
 from .evaluate import EVALUATION_SEED, TrainedAgent, run_episodes
 from .run_folders import RunError, RunFolder, RunStart
 from .train import set_torch_threads, train
 
+#: The folder of a benchmark's ``--out`` where each job's evaluation episodes are kept as they are played.
+PLAYED = "played"
 #: Ground-truth columns of the benchmark table, with their labels.
 TABLE_COLUMNS = {
     "map_accuracy": "map accuracy",
@@ -62,7 +68,8 @@ class Job:
     :class:`~emmi_gym.tools.training.evaluate.TrainedAgent` such as a shipped agent); then evaluate on the
     held-out episodes of :func:`~emmi_gym.tools.training.evaluate.run_episodes` (``episodes`` plans of a
     map set, each with ``seeds_per_plan`` seeds from ``episode_seed``; none: trained only), keeping each
-    episode's trace for the comparison at equal robot time."""
+    episode's trace for the comparison at equal robot time; ``played``: the folder where its episodes are kept as
+    they are played (:mod:`~emmi_gym.tools.evaluation.played_episodes`; None: kept nowhere)."""
 
     kind: str
     variant: str
@@ -75,6 +82,7 @@ class Job:
     allow_no_training: bool = False
     policy: object = None
     seeds_per_plan: int = 1
+    played: Path | None = None
 
 
 def run_job(job: Job) -> dict:
@@ -102,21 +110,30 @@ def run_job(job: Job) -> dict:
     else:
         trained = False
         rows = evaluation_rows(job, job.policy)
-    return {"job": job, "rows": rows, "curve": curve, "trained": trained, "wall_seconds": time.perf_counter() - started}
+    return {"job": job, "rows": rows, "curve": curve, "trained": trained, "wall_seconds": time.perf_counter() - started,
+            "kept_episodes": sum(row.pop("kept") for row in rows)}
 
 
 def evaluation_rows(job: Job, policy) -> list[dict]:
     """The job's evaluation episodes of ``policy`` (a scripted policy's name or a trained agent), played one after
     the other (the jobs are the parallelism) with their traces: rows of
     :func:`~emmi_gym.tools.evaluation.comparison.play_on_world` whose ``seed`` is the job's (the agent's training
-    seed; 0 for a baseline) and ``episode_seed`` the episode's, with the job's ``kind`` and ``variant``."""
+    seed; 0 for a baseline) and ``episode_seed`` the episode's, with the job's ``kind`` and ``variant``, and
+    ``kept``: whether the row was kept by an earlier run in the job's ``played`` folder (then not played again)."""
     settings, episodes = run_episodes(job.config, episodes=job.episodes, seed=job.episode_seed,
                                       seeds_per_plan=job.seeds_per_plan)
+    played = None if job.played is None else PlayedEpisodes.in_folder(job.played, job.run_dir.name, settings, policy)
     rows = []
     for world, seed in episodes:
-        row = play_on_world(world, seed, policy, settings, keep_trace=True)
-        del row["policy"]
-        rows.append({**row, "episode_seed": row["seed"], "kind": job.kind, "variant": job.variant, "seed": job.seed})
+        row = None if played is None else played.get(world, seed)
+        kept = row is not None
+        if not kept:
+            row = play_on_world(world, seed, policy, settings, keep_trace=True)
+            del row["policy"]
+            if played is not None:
+                played.add(row)
+        rows.append({**row, "episode_seed": row["seed"], "kind": job.kind, "variant": job.variant, "seed": job.seed,
+                     "kept": kept})
     return rows
 
 
@@ -189,12 +206,12 @@ def make_jobs(config: AgentConfig, rewards, seeds, timesteps: int, episodes: int
                             policy_lag=0)
             jobs.append(Job("agent", reward, int(seed), agent, out / "runs" / f"{reward}_seed{seed}",
                             0 if train_only else episodes, eval_seed, init_from, allow_no_training,
-                            seeds_per_plan=seeds_per_plan))
+                            seeds_per_plan=seeds_per_plan, played=out / PLAYED))
     if train_only:
         return jobs
     for name, baseline in zip(names, baselines, strict=True):
         jobs.append(Job("baseline", name, 0, config, out / "runs" / name, episodes, eval_seed, policy=baseline,
-                        seeds_per_plan=seeds_per_plan))
+                        seeds_per_plan=seeds_per_plan, played=out / PLAYED))
     return jobs
 
 

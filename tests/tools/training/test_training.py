@@ -744,6 +744,14 @@ def test_benchmark_command_trains_for_the_configurations_budget_by_default(tmp_p
     assert "16 training steps per agent" in summary and "| coverage (1 agents) |" in summary
     assert yaml.safe_load((tmp_path / "bench" / "runs" / "coverage_seed0" / "config.yaml").read_text())[
         "total_timesteps"] == 16
+    # run again: the agent is not trained again, nor its episode played again
+    assert main(["benchmark", "--config", str(path), "--rewards", "coverage", "--seeds", "1", "--episodes", "1",
+                 "--baselines", "--workers", "1", "--out", str(tmp_path / "bench"), "--quiet"]) == 0
+    again = (tmp_path / "bench" / "benchmark_summary.md").read_text()
+    assert "1 agent(s) trained by an earlier run" in again and "1 episode(s) played by an earlier run" in again
+    assert again.split("wall time")[1] == summary.split("wall time")[1].replace(
+        "(local processes)", "(local processes; 1 agent(s) trained by an earlier run into this folder; 1 episode(s) "
+        "played by an earlier run, kept in its played/)")
 
 
 @pytest.mark.slow
