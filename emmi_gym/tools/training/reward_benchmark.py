@@ -119,10 +119,12 @@ def evaluation_rows(job: Job, policy) -> list[dict]:
     the other (the jobs are the parallelism) with their traces: rows of
     :func:`~emmi_gym.tools.evaluation.comparison.play_on_world` whose ``seed`` is the job's (the agent's training
     seed; 0 for a baseline) and ``episode_seed`` the episode's, with the job's ``kind`` and ``variant``, and
-    ``kept``: whether the row was kept by an earlier run in the job's ``played`` folder (then not played again)."""
+    ``kept``: whether the row was kept by an earlier run in the job's ``played`` folder (then not played again; a
+    policy object without ``identity()``, which says what it plays, is played every time)."""
     settings, episodes = run_episodes(job.config, episodes=job.episodes, seed=job.episode_seed,
                                       seeds_per_plan=job.seeds_per_plan)
-    played = None if job.played is None else PlayedEpisodes.in_folder(job.played, job.run_dir.name, settings, policy)
+    keepable = job.played is not None and (isinstance(policy, str) or hasattr(policy, "identity"))
+    played = PlayedEpisodes.in_folder(job.played, job.run_dir.name, settings, policy) if keepable else None
     rows = []
     for world, seed in episodes:
         row = None if played is None else played.get(world, seed)

@@ -118,3 +118,23 @@ def test_a_benchmark_run_again_plays_only_the_episodes_it_does_not_hold(tmp_path
     again = _rows(tmp_path / "resumed", 2)
     assert len(played) == 2 and again["kept_episodes"] == 4
     assert json.dumps(again["rows"]) == json.dumps(whole["rows"])
+
+
+class _OwnPolicy:
+    """A policy object of a user's own that does not say what it plays (no ``identity()``)."""
+
+    name = "own"
+
+    def make_actor(self):
+        from emmi_gym.tools.evaluation.comparison import make_actor
+
+        return make_actor("frontier")
+
+
+def test_a_policy_that_does_not_say_what_it_plays_is_played_every_time(tmp_path):
+    from dataclasses import replace
+
+    (job,) = make_jobs(_config(), [], range(0), 16, 1, ["frontier"], tmp_path, eval_seed=70)
+    own = replace(job, policy=_OwnPolicy())
+    assert [run_job(own)["kept_episodes"] for _ in range(2)] == [0, 0]
+    assert not (tmp_path / "played").exists()
