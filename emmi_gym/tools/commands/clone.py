@@ -13,7 +13,9 @@ def add_parser(subparsers) -> None:
     cl = subparsers.add_parser("clone", help="behaviour cloning: fit a configuration's model to a scripted "
                                              "policy's decisions, a warm start for 'train --init-from'")
     cl.add_argument("config", help="agent configuration (.yaml) of a waypoint env, e.g. agents/ppo_plans_emmi.yaml")
-    cl.add_argument("--policy", default="active_loop_closing", help="the scripted policy (default active_loop_closing)")
+    cl.add_argument("--policy", default=None,
+                    help="the scripted policy (default active_loop_closing; not with --demos, whose files hold the "
+                         "decisions to fit)")
     cl.add_argument("--episodes", type=arguments.EPISODES, default=64,
                     help="demonstration episodes in the training env (default 64)")
     cl.add_argument("--seed", type=arguments.SEED, default=DEMONSTRATION_SEED,
@@ -45,8 +47,12 @@ def run(args: argparse.Namespace) -> int:
     )
     from ..training.run_folders import RunFolder
 
-    if args.policy not in POLICY_NAMES:
-        raise ValueError(f"--policy: unknown {args.policy!r}; choose from {list(POLICY_NAMES)}")
+    if args.demos and args.policy:
+        raise ValueError(f"--policy {args.policy} with --demos: the demonstrations files hold their own decisions; "
+                         "give one or the other")
+    policy = args.policy or "active_loop_closing"
+    if policy not in POLICY_NAMES:
+        raise ValueError(f"--policy: unknown {policy!r}; choose from {list(POLICY_NAMES)}")
     folder = RunFolder(args.out, CLONE_FILES)
     folder.check_new(args.overwrite, resumable=False, inputs={"--demos": args.demos})
     out = output_folder(args.out)
@@ -55,15 +61,17 @@ def run(args: argparse.Namespace) -> int:
     if args.demos:
         demonstrations = Demonstrations.load(*args.demos)  # checked, then read into one set of arrays
     else:
-        demonstrations = collect_demonstrations(config, args.policy, args.episodes, args.seed, workers=args.workers,
+        demonstrations = collect_demonstrations(config, policy, args.episodes, args.seed, workers=args.workers,
                                                 progress=not args.quiet)
     if args.overwrite:  # once every input is read
         folder.clear()
     if not args.demos:
         demonstrations.save(out / "demonstrations.npz")
-    print(f"{len(demonstrations)} decisions of {args.policy} in {demonstrations.episodes} episodes")
+    source = {"demonstrations": [str(path) for path in args.demos]} if args.demos else {"policy": policy}
+    print(f"{len(demonstrations)} decisions of {', '.join(args.demos) if args.demos else policy} in "
+          f"{demonstrations.episodes} episodes")
     model_path, losses, model = clone_run(config, demonstrations, out, epochs=args.epochs)
-    record = {"policy": args.policy, "episodes": demonstrations.episodes, "decisions": len(demonstrations),
+    record = {**source, "episodes": demonstrations.episodes, "decisions": len(demonstrations),
               "epochs": args.epochs, "losses": [round(loss, 4) for loss in losses],
               "agreement": round(agreement(model, demonstrations), 4)}
     write_clone_record(out, record)

@@ -1,8 +1,9 @@
 """Behaviour cloning from a scripted policy: a warm start for reinforcement learning.
 
 :func:`collect_demonstrations` plays a scripted policy of :mod:`emmi_gym.tools.policies` (for instance
-``active_loop_closing``) in an agent configuration's training env and records, at every decision,
-the observation, the action masks and the action taken. :func:`clone` fits a model's policy to
+``active_loop_closing``), or any policy of :func:`~emmi_gym.tools.evaluation.comparison.compare_on` (an object
+with ``make_actor()``: a trained agent, a planner), in an agent configuration's training env and records, at
+every decision, the observation, the action masks and the action taken. :func:`clone` fits a model's policy to
 them by maximum likelihood: it minimises the negative log-probability of the demonstrated action
 under the policy, the masked slots excluded (Pomerleau's behaviour cloning; the same loss as the
 ``imitation`` library's BC, which passes no action masks). :func:`clone_run` fits a fresh model of
@@ -28,22 +29,22 @@ CLONE_FILES = ("model.zip", "config.yaml", "demonstrations.npz", "clone.yaml")
 
 
 def _demonstration(job) -> tuple[int, Demonstrations]:
-    """One episode of the scripted policy in ``gym.make(env_id, **env_kwargs)`` with ``seed``: (seed, its decisions)."""
+    """One episode of ``policy`` in ``gym.make(env_id, **env_kwargs)`` with ``seed``: (seed, its decisions)."""
     import gymnasium as gym
 
-    from ..policies import make_policy
+    from ..evaluation.comparison import make_actor
 
-    env_id, env_kwargs, policy_name, seed = job
+    env_id, env_kwargs, policy, seed = job
     env = gym.make(env_id, **env_kwargs)
-    core, policy = env.unwrapped, make_policy(policy_name)
-    policy.reset(seed)
+    core, actor = env.unwrapped, make_actor(policy)
+    actor.reset(seed)
     observation, _ = env.reset(seed=seed)
     observations, masks, actions = [], [], []
     done = False
     while not done:
         masks.append(core.action_masks())
         observations.append(observation)
-        actions.append(policy(env))
+        actions.append(int(actor(env, observation)))
         observation, _, terminated, truncated, _ = env.step(actions[-1])
         done = terminated or truncated
     env.close()
@@ -51,15 +52,17 @@ def _demonstration(job) -> tuple[int, Demonstrations]:
                                 np.array(masks, dtype=bool), np.array(actions, dtype=np.int64), 1)
 
 
-def collect_demonstrations(config: AgentConfig, policy: str, episodes: int, seed: int, *,
+def collect_demonstrations(config: AgentConfig, policy, episodes: int, seed: int, *,
                            workers: int | None = None, progress: bool = True) -> Demonstrations:
-    """``episodes`` episodes of the scripted ``policy`` in ``config``'s training env (its id and keywords),
-    seeded ``seed``, ``seed + 1``...; in ``workers`` processes, joined in the order of their seeds. Needs
-    a waypoint env (action masks)."""
+    """``episodes`` episodes of ``policy`` (a scripted policy's name, or a picklable object with ``make_actor()``
+    as :func:`~emmi_gym.tools.evaluation.comparison.compare_on` takes) in ``config``'s training env (its id and
+    keywords), seeded ``seed``, ``seed + 1``...; in ``workers`` processes, joined in the order of their seeds.
+    Needs a waypoint env (action masks)."""
     check_cloneable(config)
     jobs = ((config.env_id, dict(config.env_kwargs), policy, seed + k) for k in range(episodes))
+    spawn = None if isinstance(policy, str) else "spawn"  # a trained agent's torch and fork do not mix
     parts = run_in_processes(_demonstration, jobs, total=episodes, workers=workers, desc="demonstrations",
-                             progress=progress)
+                             progress=progress, start_method=spawn)
     return Demonstrations.joined([part for _, part in sorted(parts, key=lambda part: part[0])])
 
 

@@ -72,3 +72,14 @@ def test_bad_demonstrations_and_a_velocity_env_are_clear_errors(tmp_path):
     dqn = dict(CONFIG, algorithm="DQN", policy="MultiInputPolicy", hyperparameters={"learning_starts": 8})
     with pytest.raises(ValueError, match="algorithm DQN: behaviour cloning fits a MaskablePPO policy"):
         collect_demonstrations(parse_agent_config(dqn), "frontier", 1, 0, workers=1, progress=False)
+
+
+def test_clone_refuses_a_policy_beside_demonstrations_files(tmp_path, capsys):
+    (tmp_path / "agent.yaml").write_text(yaml.safe_dump(CONFIG))
+    with pytest.raises(SystemExit) as stop:
+        main(["clone", str(tmp_path / "agent.yaml"), "--policy", "frontier", "--demos", str(tmp_path / "a.npz"),
+              "--out", str(tmp_path / "bc")])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "--policy frontier with --demos: the demonstrations files hold their own decisions" in err
+    assert not (tmp_path / "bc").exists()
