@@ -39,7 +39,7 @@ def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
     """The episodes of every folder, each with its trace (unless not ``traces``), a world named as
     :func:`~emmi_gym.world.map_sets.world_name` says (so that evaluations made from two installs pair);
     ``SystemExit`` naming a file that is missing or not one of ``evaluate``'s, or an episode that two folders
-    hold."""
+    hold with other scores (one they hold alike, as evaluations that share a ``played/`` folder do, counts once)."""
     rows, seen = [], {}
     for folder in folders:
         try:
@@ -52,14 +52,24 @@ def pooled_episodes(folders: list[Path], traces: bool = True) -> list[dict]:
             raise SystemExit(str(error)) from None
         for row in (*episodes, *points):
             row["world"] = world_name(row["world"])
+        fresh = []
         for row in episodes:
             key = tuple(row[k] for k in KEYS)
-            if key in seen:
-                raise SystemExit(f"{folder}: the episode {dict(zip(KEYS, key, strict=True))} is also in {seen[key]}: "
-                                 "evaluate each agent under its own --name")
-            seen[key] = folder
-        rows += with_traces(episodes, points, KEYS)
+            if key in seen and not same_episode(row, seen[key][1]):
+                raise SystemExit(f"{folder}: the episode {dict(zip(KEYS, key, strict=True))} is also in "
+                                 f"{seen[key][0]}, with other scores: evaluate each agent under its own --name")
+            if key not in seen:  # the same episode in two folders (read back from one played/): counted once
+                seen[key] = folder, row
+                fresh.append(row)
+        rows += with_traces(fresh, points, KEYS)
     return rows
+
+
+def same_episode(row: dict, other: dict) -> bool:
+    """Whether two rows of one (world, seed, policy) hold the same values in the columns both files have (NaN
+    where both are NaN)."""
+    return all(a == b or (isinstance(a, float) and isinstance(b, float) and np.isnan(a) and np.isnan(b))
+               for a, b in ((row[k], other[k]) for k in row.keys() & other.keys()))
 
 
 def means_table(rows: list[dict], policies: list[str]) -> str:

@@ -4,6 +4,7 @@ can be checked), that count stuck episodes, or that read the shipped agents' mod
 
 import csv
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -67,6 +68,11 @@ def test_evaluations_paired_refuses_one_episode_in_two_folders_and_a_policy_of_n
     twice = run_script(MEASUREMENTS / "evaluations_paired.py", agent, evaluation(tmp_path / "B", "agent", 0.3, 900),
                        "--policy", "agent", "--baselines", "agent")
     assert twice.code == 1 and "is also in" in twice.err and "evaluate each agent under its own --name" in twice.err
+    shutil.copytree(agent, tmp_path / "C")  # the same episodes (two evaluations that share a played/): counted once
+    alike = run_script(MEASUREMENTS / "evaluations_paired.py", agent, tmp_path / "C", "--policy", "agent",
+                       "--baselines", "agent", "--compact")
+    assert alike.code == 0, alike.err
+    assert cells(alike.out, "agent")[1] == "2"
     unknown = run_script(MEASUREMENTS / "evaluations_paired.py", agent, "--policy", "agent", "--baselines", "random")
     assert unknown.code == 2 and "['random']: no episodes of them in the folders, which hold ['agent']" in unknown.err
 
