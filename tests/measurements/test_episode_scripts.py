@@ -153,3 +153,85 @@ def test_lost_updates_counts_the_updates_each_shipped_agent_made_against_its_dec
 def test_lost_updates_refuses_a_stage_not_of_five_counts(stage, tmp_path):
     done = run_script(MEASUREMENTS / "lost_updates.py", tmp_path / "m.zip", "--earlier", stage)
     assert done.code == 2 and "expected DECISIONS:N_ENVS:N_STEPS:BATCH_SIZE:N_EPOCHS" in done.err
+
+
+def _lookahead_config(tmp_path):
+    path = tmp_path / "plans.yaml"
+    path.write_text("env:\n  id: emmi_gym/ExplorePlans-v1\n  kwargs: {particles: 3, max_decisions: 2}\n"
+                    "algorithm: MaskablePPO\npolicy: MultiInputPolicy\nn_envs: 1\ntotal_timesteps: 16\n"
+                    "eval: {freq: 0, env_kwargs: {world: dungeon_maps/test}}\n")
+    return path
+
+
+def test_target_lookahead_takes_the_target_whose_outcome_is_best(tmp_path, monkeypatch):
+    """At each decision the planner's choice is the offered target whose step, played on a copy, leaves the best
+    objective: played again slot by slot from the same state, no other slot leaves a better one, and the env's own
+    step then leaves the outcome foreseen."""
+    import gymnasium as gym
+
+    monkeypatch.syspath_prepend(str(MEASUREMENTS))
+    import target_lookahead
+
+    env = gym.make("emmi_gym/ExplorePlans-v1", particles=3, world="dungeon_maps/test")
+    env.reset(seed=4)
+    for objective in ("building_accuracy", "ate"):
+        actor = target_lookahead.LookaheadActor(objective)
+        chosen = actor(env, None)
+        outcomes = {int(slot): actor.outcome(env, int(slot)) for slot in np.flatnonzero(env.unwrapped.action_masks())}
+        assert outcomes[chosen] == max(outcomes.values())
+    fresh = target_lookahead.LookaheadActor("ate", noise="fresh")  # copies that draw noise of their own
+    fresh.reset(1)
+    first = fresh.outcome(env, chosen)
+    fresh.reset(1)
+    assert fresh.outcome(env, chosen) == first  # seeded by the episode
+    fresh.reset(2)
+    assert fresh.outcome(env, chosen) != first != outcomes[chosen]  # not the env's own next draws
+    with pytest.raises(ValueError, match=r"noise: expected one of \['foreseen', 'fresh'\], got 'future'"):
+        target_lookahead.LookaheadActor("ate", noise="future")
+    env.step(chosen)  # the copies left the env as it was, and drew the noise it draws now: the outcome foreseen
+    assert -env.unwrapped.ground_truth_scores()["ate"] == outcomes[chosen]
+    env.close()
+
+
+def test_target_lookahead_plays_beside_the_baselines_and_reads_back_what_it_kept(tmp_path):
+    config = _lookahead_config(tmp_path)
+    argv = ["--config", config, "--episodes", "2", "--baselines", "frontier", "--out", tmp_path / "out",
+            "--workers", "1"]
+    done = run_script(MEASUREMENTS / "target_lookahead.py", *argv)
+    assert done.code == 0, done.err
+    assert "lookahead_building_accuracy: 0 episodes kept" in done.out and "frontier: 0 episodes kept" in done.out
+    assert "lookahead_building_accuracy - frontier: 2 pairs (world, seed) on 2 plans" in done.out
+    assert "at equal robot time" in done.out
+    first = (tmp_path / "out" / "summary.md").read_text()
+    again = run_script(MEASUREMENTS / "target_lookahead.py", *argv)
+    assert again.code == 0, again.err
+    assert "lookahead_building_accuracy: 2 episodes kept" in again.out and "0 to play" in again.out
+    assert (tmp_path / "out" / "summary.md").read_text() == first
+    wider = run_script(MEASUREMENTS / "target_lookahead.py", *argv, "--planner-options", '{"n_revisits": 4}',
+                       "--name", "wider")
+    assert wider.code == 0, wider.err
+    assert "wider: 0 episodes kept" in wider.out and "frontier: 2 episodes kept" in wider.out
+    assert "(emmi_gym/ExplorePlans-v1, the planner with {'n_revisits': 4})" in wider.out
+    for options, message in (("{]", "--planner-options: not JSON"), ('{"n_revisits": -1}', "n_revisits"),
+                             ("[4]", "a JSON object of gym.make options expected")):
+        bad = run_script(MEASUREMENTS / "target_lookahead.py", *argv, "--planner-options", options)
+        assert bad.code == 2 and message in bad.err, bad.err
+    bad = run_script(MEASUREMENTS / "target_lookahead.py", "--config", config, "--baselines", "nobody", "--out",
+                     tmp_path / "x")
+    assert bad.code == 2 and "--baselines: unknown ['nobody']" in bad.err
+
+
+def test_lookahead_demonstrations_are_the_planners_choices_and_clone_fits_them(tmp_path):
+    from emmi_gym.tools.training.demonstrations import Demonstrations
+
+    config = _lookahead_config(tmp_path)
+    out = tmp_path / "demos" / "lookahead.npz"
+    done = run_script(MEASUREMENTS / "lookahead_demonstrations.py", "--config", config, "--episodes", "2",
+                      "--seed", "11", "--out", out, "--workers", "1")
+    assert done.code == 0, done.err
+    demos = Demonstrations.load(out)
+    assert demos.episodes == 2 and len(demos) == 4  # max_decisions 2 in each episode
+    assert demos.masks[np.arange(4), demos.actions].all()
+    assert "4 decisions of lookahead_building_accuracy in 2 episodes" in done.out and "(seeds 11-12)" in done.out
+    bad = run_script(MEASUREMENTS / "lookahead_demonstrations.py", "--config", config, "--out", tmp_path / "d.txt")
+    assert bad.code == 2 and "--out: a demonstrations file ends in .npz" in bad.err
