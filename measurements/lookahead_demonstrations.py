@@ -24,7 +24,7 @@ import argparse
 from pathlib import Path
 
 import _arguments as arguments
-from target_lookahead import NOISE, OBJECTIVES, Lookahead
+from target_lookahead import Lookahead, add_planner_arguments
 
 from emmi_gym.env.seeds import DEMONSTRATION_SEED
 from emmi_gym.tools.training.config import load_agent_config
@@ -41,11 +41,7 @@ def main(argv=None) -> int:
                         help="demonstration episodes (default 160)")
     parser.add_argument("--seed", type=arguments.SEED, default=DEMONSTRATION_SEED,
                         help=f"the first episode's seed (default {DEMONSTRATION_SEED}, as emmi-gym clone's)")
-    parser.add_argument("--objective", choices=OBJECTIVES, default="building_accuracy",
-                        help="the ground-truth score the planner chooses by (default building_accuracy)")
-    parser.add_argument("--noise", choices=NOISE, default="foreseen",
-                        help="the planner's copies draw the env's own next noise (foreseen, the default) or their own "
-                             "(fresh)")
+    add_planner_arguments(parser)
     parser.add_argument("--out", type=Path, required=True, help="the demonstrations file (.npz) to write")
     arguments.add_workers(parser)
     return arguments.run_command(parser, run, argv)

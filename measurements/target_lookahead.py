@@ -129,6 +129,16 @@ def kept_or_played(players, episodes, played: Path, workers: int | None) -> list
     return sorted(rows, key=lambda r: (r["world"], r["seed"]))
 
 
+def add_planner_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--objective`` and ``--noise``: the planner, as this script and ``lookahead_demonstrations.py`` take it."""
+    parser.add_argument("--objective", choices=OBJECTIVES, default="building_accuracy",
+                        help="the ground-truth score the planner chooses by (default building_accuracy: the share "
+                             "of the building mapped correctly, unmapped cells counting as wrong)")
+    parser.add_argument("--noise", choices=NOISE, default="foreseen",
+                        help="the copies draw the env's own next noise (foreseen: clairvoyant, the default) or noise "
+                             "of their own (fresh)")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -141,12 +151,7 @@ def main(argv=None) -> int:
                         help="episode seeds per plan (default 1)")
     parser.add_argument("--eval-seed", type=arguments.SEED, default=EVALUATION_SEED,
                         help=f"the first episode seed (default {EVALUATION_SEED}, as the benchmark's)")
-    parser.add_argument("--objective", choices=OBJECTIVES, default="building_accuracy",
-                        help="the ground-truth score the planner chooses by (default building_accuracy: the share "
-                             "of the building mapped correctly, unmapped cells counting as wrong)")
-    parser.add_argument("--noise", choices=NOISE, default="foreseen",
-                        help="the copies draw the env's own next noise (foreseen: clairvoyant, the default) or noise "
-                             "of their own (fresh)")
+    add_planner_arguments(parser)
     parser.add_argument("--planner-options", default="{}", metavar="JSON",
                         help="gym.make options of the planner's env over the configuration's, e.g. the targets it is "
                              "offered ('{\"n_revisits\": 4, \"min_loop_spread\": 0.0}'); the baselines play the "
