@@ -1,11 +1,11 @@
 """Demonstrations of the lookahead planner: its decisions in a configuration's training env, for behaviour cloning.
 
-The planner of ``target_lookahead.py`` (privileged and clairvoyant: it plays each offered target on a copy of
-the env and takes the best by a ground-truth score) plays ``--episodes`` episodes of the configuration's
-*training* env (on ``ExplorePlans`` the train split's plans), and its observations, action masks and choices
-are written as ``emmi-gym clone`` reads them. Fitting the configuration's network to them asks whether a policy
-that sees only the observation can choose as the planner does (the teacher-student scheme of privileged
-training: Chen et al., "Learning by Cheating", CoRL 2019):
+The planner of ``target_lookahead.py`` (privileged, and clairvoyant unless ``--noise fresh``: it plays each
+offered target on a copy of the env and takes the best by a ground-truth score) plays ``--episodes`` episodes
+of the configuration's *training* env (on ``ExplorePlans`` the train split's plans), and its observations,
+action masks and choices are written as ``emmi-gym clone`` reads them. Fitting the configuration's network to
+them asks whether a policy that sees only the observation can choose as the planner does (the teacher-student
+scheme of privileged training: Chen et al., "Learning by Cheating", CoRL 2019):
 
     python measurements/lookahead_demonstrations.py --config agents/ppo_plans_scratch.yaml --episodes 160 \\
         --out runs/lookahead_clone/demonstrations.npz
