@@ -158,8 +158,8 @@ def main(argv=None) -> int:
                              "configuration's")
     parser.add_argument("--name", default=None,
                         help="the planner's name in the rows (default lookahead_OBJECTIVE, with _fresh for --noise "
-                             "fresh): a run with other "
-                             "--planner-options under another name pairs with this one (evaluations_paired.py)")
+                             "fresh): a run with other --planner-options under another name pairs with this one "
+                             "(evaluations_paired.py)")
     parser.add_argument("--baselines", nargs="+", default=["active_loop_closing"], metavar="POLICY",
                         help="scripted policies or shipped agents on the same episodes (default active_loop_closing)")
     parser.add_argument("--played", type=Path, default=None,
